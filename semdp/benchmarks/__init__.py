@@ -1,0 +1,1 @@
+"""Benchmark suites run by ``semdp-bench``; each prints a table and writes a CSV."""
