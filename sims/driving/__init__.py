@@ -1,0 +1,1 @@
+"""Driving tasks: dynamic bicycle model with brush tyres (Circle, Trajectory)."""
