@@ -1,0 +1,401 @@
+"""Safe-driving tasks of the thesis, App. A.2: follow a circle or a random path at speed v_d.
+
+Observation (float32, bounded Box; every entry is clipped into its bounds)::
+
+    [d, e, d_dot, e_dot, v, v_d]                      (DriveCircle-v0, 6 entries)
+    [d, e, d_dot, e_dot, v, v_d, p_1x, p_1y, ..., p_Kx, p_Ky]   (DriveTrajectory-v0, 6 + 2K)
+
+* ``d`` [m]: signed lateral distance to the centre line, positive to the left of the direction
+  of travel (inside of the counter-clockwise circle); bounds +-(d_0 + margin + 1).
+* ``e`` [rad]: heading error ``psi - psi_path`` wrapped to [-pi, pi).
+* ``d_dot`` [m/s], ``e_dot`` [rad/s]: exact time derivatives from the Frenet kinematics,
+  ``d_dot = v_x sin e + v_y cos e``, ``e_dot = r - kappa (v_x cos e - v_y sin e) / (1 - kappa d)``
+  (kappa: path curvature at the projection); bounds +-20 and +-30.
+* ``v`` [m/s]: speed ``hypot(v_x, v_y)``, in [0, 20]; ``v_d`` [m/s]: desired speed.
+* ``p_k`` [m] (Trajectory only): centre-line points at arc lengths ``s_n + k * preview_spacing``
+  (``s_n``: nearest centre-line sample, within 2.5 cm of the projection), ``k = 1..K``, in the
+  car frame (x forward, y left). Defaults K = 10 points every 0.4 m (4 m of preview).
+
+Reward (Eq. A.1 written as a cost; the agent maximises its negative)::
+
+    r = -(d^2 + w_1 (v - v_d)^2 + w_2 * 1[|e| >= pi/2])
+
+Cost (Eq. A.2, d_0 = half the road width): ``info["cost"] = max(|d| - d_0, 0)``, also reported
+as ``info["cost_off_road"]``.
+
+Episode end. Truncation after ``max_episode_steps`` (the env counts its own steps; no TimeLimit
+wrapper is registered). Termination when the car is far off the road, ``|d| > d_0 +
+off_road_margin``; the terminal step then also collects the terminal step's reward and cost for
+each remaining step of the episode (as if the car stayed there), reported as
+``info["reward_termination"]`` and ``info["cost_termination"]`` (``info["cost"]`` is the sum of
+the named cost terms), so that leaving the road never shortens the penalties of an episode.
+``terminate_off_road=False`` disables termination.
+
+Actions ``[steer, throttle]`` in [-1, 1]^2: ``delta = steer * max_steer``; ``throttle >= 0``
+drives the rear axle with ``throttle * max_drive_force``, ``throttle < 0`` brakes with
+``throttle * max_brake_force``. Out-of-range actions are clipped; NaN raises ValueError.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from sims.driving.tracks import CircleTrack, RandomPathTrack, wrap_angle
+from sims.driving.vehicle import BicycleModel, VehicleParams
+
+State = tuple[float, float, float, float, float, float]
+
+D_DOT_BOUND = 20.0
+E_DOT_BOUND = 30.0
+SPEED_BOUND = 20.0
+DESIRED_SPEED_MAX = 10.0
+TRAIL_LENGTH = 300
+
+
+def _clip(value: float, bound: float) -> float:
+    return bound if value > bound else (-bound if value < -bound else value)
+
+
+class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
+    """Common dynamics, observation, reward and cost of the two driving tasks (module docstring).
+
+    Args:
+        desired_speed: v_d [m/s] in (0, 10] (the thesis sweeps 1..6).
+        road_width: Road width [m]; d_0 = road_width / 2.
+        max_episode_steps: Episode length in steps (truncation).
+        speed_weight: w_1 of Eq. A.1 (default 0.25, aa_simulation's CircleEnv weight).
+        heading_weight: w_2 of Eq. A.1.
+        dt: Control period [s]; the model takes ``ceil(dt / max_substep)`` RK4 substeps.
+        max_substep: Largest RK4 substep [s].
+        off_road_margin: Termination when ``|d| > d_0 + off_road_margin`` [m].
+        terminate_off_road: Whether to terminate off the road at all.
+        vehicle: Vehicle parameters (default: the 1/10 RC car of :class:`VehicleParams`).
+        render_mode: None or ``"rgb_array"``.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 20}
+
+    def __init__(
+        self,
+        desired_speed: float = 2.0,
+        road_width: float = 0.5,
+        max_episode_steps: int = 200,
+        speed_weight: float = 0.25,
+        heading_weight: float = 1.0,
+        dt: float = 0.05,
+        max_substep: float = 0.0125,
+        off_road_margin: float = 0.5,
+        terminate_off_road: bool = True,
+        vehicle: VehicleParams | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        _check_range("desired_speed", desired_speed, 0.0, DESIRED_SPEED_MAX, "(0, 10] m/s")
+        _check_range("road_width", road_width, 0.0, 10.0, "(0, 10] m")
+        _check_range("dt", dt, 0.0, 0.2, "(0, 0.2] s")
+        _check_range("max_substep", max_substep, 0.0, 0.025, "(0, 0.025] s")
+        _check_range("off_road_margin", off_road_margin, 0.0, 10.0, "(0, 10] m")
+        for name, weight in (("speed_weight", speed_weight), ("heading_weight", heading_weight)):
+            if not (math.isfinite(weight) and weight >= 0.0):
+                raise ValueError(f"{name} must be finite and >= 0, got {weight!r}")
+        if int(max_episode_steps) != max_episode_steps or max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be a positive integer, "
+                             f"got {max_episode_steps!r}")
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or one of "
+                             f"{self.metadata['render_modes']}, got {render_mode!r}")
+        self.desired_speed = float(desired_speed)
+        self.road_width = float(road_width)
+        self.half_width = 0.5 * self.road_width
+        self.max_episode_steps = int(max_episode_steps)
+        self.speed_weight = float(speed_weight)
+        self.heading_weight = float(heading_weight)
+        self.dt = float(dt)
+        self.substeps = max(1, math.ceil(self.dt / max_substep - 1e-9))
+        self.off_road_margin = float(off_road_margin)
+        self.termination_distance = self.half_width + self.off_road_margin
+        self.terminate_off_road = bool(terminate_off_road)
+        self.render_mode = render_mode
+        self.model = BicycleModel(vehicle)
+        params = self.model.params
+        self._max_steer = params.max_steer
+        self._max_drive = params.max_drive_force
+        self._max_brake = params.max_brake_force
+
+        self.d_bound = self.termination_distance + 1.0
+        low = [-self.d_bound, -math.pi, -D_DOT_BOUND, -E_DOT_BOUND, 0.0, 0.0]
+        high = [self.d_bound, math.pi, D_DOT_BOUND, E_DOT_BOUND, SPEED_BOUND, DESIRED_SPEED_MAX]
+        extra_low, extra_high = self._extra_bounds()
+        self._has_preview = bool(extra_low)
+        self.observation_space = spaces.Box(
+            np.array(low + extra_low, dtype=np.float32),
+            np.array(high + extra_high, dtype=np.float32),
+            dtype=np.float32,
+        )
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+
+        self.track: CircleTrack | RandomPathTrack = self._make_track()
+        self._check_track()
+        self._state: State = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._hint = 0
+        self._steps = 0
+        self._frenet: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+        self.trail: list[tuple[float, float]] = []
+
+    # ---------------------------------------------------------------- task-specific hooks
+    def _make_track(self) -> CircleTrack | RandomPathTrack:
+        raise NotImplementedError
+
+    def _extra_bounds(self) -> tuple[list[float], list[float]]:
+        return [], []
+
+    def _extra_observation(self, x: float, y: float, psi: float) -> list[float]:
+        return []
+
+    def _start_arc_length(self) -> float:
+        raise NotImplementedError
+
+    def _path_ended(self) -> bool:
+        return False
+
+    def _check_track(self) -> None:
+        if self.track.curvature_max * self.termination_distance >= 0.95:
+            raise ValueError(
+                "the road must be wider than its turns: need curvature_max * (road_width / 2 "
+                f"+ off_road_margin) < 0.95, got {self.track.curvature_max:.3f} * "
+                f"{self.termination_distance:.3f}")
+
+    # ---------------------------------------------------------------- gym API
+    @property
+    def vehicle_state(self) -> State:
+        """Current ``(x, y, psi, v_x, v_y, r)``."""
+        return self._state
+
+    @property
+    def frenet(self) -> tuple[float, float, float, float]:
+        """``(s, d, path_heading, curvature)`` of the car's projection on the centre line."""
+        return self._frenet
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: new track (Trajectory) and a random start near the centre line.
+
+        Start: lateral offset U(-d_0/2, d_0/2), heading error U(-0.25, 0.25) rad, forward speed
+        U(0, v_d), no side slip, yaw rate v_x * kappa.
+        """
+        super().reset(seed=seed)
+        rng = self.np_random
+        self._new_episode_track(rng)
+        s0 = self._start_arc_length()
+        px, py = self.track.point_at(s0)
+        heading = self.track.heading_at(s0)
+        offset = float(rng.uniform(-0.5, 0.5)) * self.half_width
+        psi = wrap_angle(heading + float(rng.uniform(-0.25, 0.25)))
+        v_x = float(rng.uniform(0.0, self.desired_speed))
+        x = px - math.sin(heading) * offset
+        y = py + math.cos(heading) * offset
+        self._state = (x, y, psi, v_x, 0.0, v_x * self.track.curvature_at(s0))
+        self._hint = int(s0 / getattr(self.track, "spacing", 1.0))
+        self._steps = 0
+        self.trail = [(x, y)] if self.render_mode is not None else []
+        obs, _, _, info = self._observe()
+        return obs, info
+
+    def _new_episode_track(self, rng: np.random.Generator) -> None:
+        """Hook: the Trajectory task draws a new path here."""
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Apply ``[steer, throttle]`` for ``dt`` seconds; returns the gymnasium 5-tuple."""
+        steer, throttle = _parse_action(action)
+        force = throttle * (self._max_drive if throttle >= 0.0 else self._max_brake)
+        x, y, psi, v_x, v_y, r = self.model.step(
+            self._state, steer * self._max_steer, force, self.dt, self.substeps)
+        if not math.isfinite(x + y + psi + v_x + v_y + r):
+            raise RuntimeError(f"vehicle state became non-finite: {(x, y, psi, v_x, v_y, r)}")
+        self._state = (x, y, (psi + math.pi) % (2.0 * math.pi) - math.pi, v_x, v_y, r)
+        self._steps += 1
+        if self.render_mode is not None:
+            self.trail.append((x, y))
+            if len(self.trail) > TRAIL_LENGTH:
+                del self.trail[0]
+
+        obs, reward, cost, info = self._observe()
+        terminated = self.terminate_off_road and abs(self._frenet[1]) > self.termination_distance
+        truncated = self._steps >= self.max_episode_steps or self._path_ended()
+        if terminated:
+            remaining = self.max_episode_steps - self._steps
+            info["reward_termination"] = remaining * reward
+            info["cost_termination"] = remaining * cost
+            info["cost"] = cost * (1 + remaining)
+            reward *= 1 + remaining
+            truncated = False
+        return obs, reward, terminated, truncated, info
+
+    def _observe(self) -> tuple[np.ndarray, float, float, dict[str, Any]]:
+        x, y, psi, v_x, v_y, r = self._state
+        s, d, path_heading, curvature, self._hint = self.track.project(x, y, self._hint)
+        self._frenet = (s, d, path_heading, curvature)
+        e = (psi - path_heading + math.pi) % (2.0 * math.pi) - math.pi
+        cos_e = math.cos(e)
+        sin_e = math.sin(e)
+        d_dot = v_x * sin_e + v_y * cos_e
+        e_dot = r - curvature * (v_x * cos_e - v_y * sin_e) / (1.0 - curvature * d)
+        speed = math.sqrt(v_x * v_x + v_y * v_y)
+
+        speed_error = speed - self.desired_speed
+        reward = -(d * d + self.speed_weight * speed_error * speed_error
+                   + (self.heading_weight if abs(e) >= 0.5 * math.pi else 0.0))
+        cost = abs(d) - self.half_width
+        cost = cost if cost > 0.0 else 0.0
+
+        values = [_clip(d, self.d_bound), e, _clip(d_dot, D_DOT_BOUND),
+                  _clip(e_dot, E_DOT_BOUND), speed if speed < SPEED_BOUND else SPEED_BOUND,
+                  self.desired_speed]
+        if self._has_preview:
+            values += self._extra_observation(x, y, psi)
+        obs = np.array(values, dtype=np.float32)
+        info = {"cost": cost, "cost_off_road": cost, "lateral_distance": d,
+                "heading_error": e, "speed": speed}
+        return obs, reward, cost, info
+
+    def render(self) -> np.ndarray | None:
+        """Top-down RGB image of the road, the car (heading marked) and its recent path."""
+        if self.render_mode is None:
+            return None
+        from sims.driving.render import render_top_down
+
+        return render_top_down(self)
+
+
+class DriveCircleEnv(DrivingEnv):
+    """``sims/DriveCircle-v0``: follow a counter-clockwise circle (App. A.2, Fig. A.2 left).
+
+    Args:
+        radius: Circle radius [m] (default 1 m, as aa_simulation's CircleEnv).
+        **kwargs: See :class:`DrivingEnv`.
+    """
+
+    def __init__(self, radius: float = 1.0, **kwargs: Any) -> None:
+        self.radius = float(radius)
+        super().__init__(**kwargs)
+
+    def _make_track(self) -> CircleTrack:
+        return CircleTrack(self.radius)
+
+    def _start_arc_length(self) -> float:
+        return float(self.np_random.uniform(0.0, 2.0 * math.pi * self.radius))
+
+
+class DriveTrajectoryEnv(DrivingEnv):
+    """``sims/DriveTrajectory-v0``: follow a seeded random smooth path (App. A.2, Fig. A.2 right).
+
+    A new path (:class:`RandomPathTrack`) is drawn from the env's generator at every reset; its
+    length covers ``max_episode_steps * dt`` at 10.5 m/s (above the top speed) plus the preview.
+
+    Args:
+        preview_points: K, number of centre-line points in the observation.
+        preview_spacing: Arc-length spacing of those points [m] (multiple of 0.05 m).
+        max_curvature: Largest path curvature [1/m] (tightest turn radius 1.5 m by default).
+        max_heading: Largest heading deviation of the path from +x [rad].
+        **kwargs: See :class:`DrivingEnv`.
+    """
+
+    SPACING = 0.05
+    START_ARC_LENGTH = 2.0
+
+    def __init__(
+        self,
+        preview_points: int = 10,
+        preview_spacing: float = 0.4,
+        max_curvature: float = 1.0 / 1.5,
+        max_heading: float = 1.0,
+        **kwargs: Any,
+    ) -> None:
+        if int(preview_points) != preview_points or not 1 <= preview_points <= 50:
+            raise ValueError(f"preview_points must be an integer in [1, 50], "
+                             f"got {preview_points!r}")
+        stride = round(preview_spacing / self.SPACING)
+        if stride < 1 or abs(stride * self.SPACING - preview_spacing) > 1e-9:
+            raise ValueError(f"preview_spacing must be a positive multiple of {self.SPACING} m, "
+                             f"got {preview_spacing!r}")
+        self.preview_points = int(preview_points)
+        self.preview_spacing = float(preview_spacing)
+        self._stride = int(stride)
+        self.max_curvature = float(max_curvature)
+        self.max_heading = float(max_heading)
+        self._path_length = 0.0
+        super().__init__(**kwargs)
+
+    def _make_track(self) -> RandomPathTrack:
+        self._path_length = (10.5 * self.max_episode_steps * self.dt + self.START_ARC_LENGTH
+                             + self.preview_points * self.preview_spacing + 2.0)
+        return self._draw_track(np.random.default_rng(0))
+
+    def _draw_track(self, rng: np.random.Generator) -> RandomPathTrack:
+        return RandomPathTrack(rng, length=self._path_length, spacing=self.SPACING,
+                               max_heading=self.max_heading, max_curvature=self.max_curvature)
+
+    def _new_episode_track(self, rng: np.random.Generator) -> None:
+        self.track = self._draw_track(rng)
+
+    def _start_arc_length(self) -> float:
+        return self.START_ARC_LENGTH
+
+    def _path_ended(self) -> bool:
+        return self._hint + self.preview_points * self._stride >= self.track.last_index
+
+    def _extra_bounds(self) -> tuple[list[float], list[float]]:
+        bound = self.preview_points * self.preview_spacing + self.d_bound + 1.0
+        return [-bound] * (2 * self.preview_points), [bound] * (2 * self.preview_points)
+
+    def _extra_observation(self, x: float, y: float, psi: float) -> list[float]:
+        track = self.track
+        xs, ys = track.xs, track.ys
+        c = math.cos(psi)
+        s = math.sin(psi)
+        last = track.last_index
+        out: list[float] = []
+        index = self._hint
+        for _ in range(self.preview_points):
+            index += self._stride
+            i = index if index < last else last
+            dx = xs[i] - x
+            dy = ys[i] - y
+            out.append(c * dx + s * dy)
+            out.append(c * dy - s * dx)
+        return out
+
+
+def _check_range(name: str, value: float, low: float, high: float, valid: str) -> None:
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a number in {valid}, got {value!r}") from exc
+    if not (math.isfinite(number) and low < number <= high):
+        raise ValueError(f"{name} must be in {valid}, got {value!r}")
+
+
+def _parse_action(action: Any) -> tuple[float, float]:
+    """``(steer, throttle)`` clipped to [-1, 1]; raises ValueError on NaN or a wrong shape."""
+    if isinstance(action, np.ndarray):
+        if action.shape != (2,):
+            raise ValueError(f"action must have shape (2,) = [steer, throttle], "
+                             f"got shape {action.shape}")
+        steer, throttle = action.tolist()
+    else:
+        try:
+            steer, throttle = (float(v) for v in action)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"action must be two numbers [steer, throttle], "
+                             f"got {action!r}") from exc
+    if steer != steer or throttle != throttle:
+        raise ValueError(f"action contains NaN: {action!r}; expected [steer, throttle] in "
+                         f"[-1, 1]")
+    steer = 1.0 if steer > 1.0 else (-1.0 if steer < -1.0 else steer)
+    throttle = 1.0 if throttle > 1.0 else (-1.0 if throttle < -1.0 else throttle)
+    return float(steer), float(throttle)
