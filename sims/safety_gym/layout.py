@@ -1,0 +1,110 @@
+"""Random layout sampling with keepouts (spec §6, Safety-Gymnasium's ``random_generator``).
+
+Objects are placed in the task's order; each is drawn uniformly from the extents shrunk by its
+keepout and accepted if it is at least ``k + k_j`` from every object placed before it. Each
+object gets 100 draws and the whole layout 10000 attempts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from sims.safety_gym.config import ObjectSpec
+
+Point2 = tuple[float, float]
+PLACEMENT_DRAWS = 100
+LAYOUT_ATTEMPTS = 10000
+GOAL_DRAWS = 10000
+
+
+class LayoutError(RuntimeError):
+    """No layout satisfying the keepouts was found."""
+
+
+def _draw(rng: np.random.Generator, extents: Sequence[float], keepout: float) -> Point2:
+    xmin, ymin, xmax, ymax = extents
+    lo_x, hi_x = xmin + keepout, xmax - keepout
+    lo_y, hi_y = ymin + keepout, ymax - keepout
+    return (float(rng.uniform(lo_x, hi_x)), float(rng.uniform(lo_y, hi_y)))
+
+
+def _clear(p: Point2, keepout: float, placed: Sequence[tuple[float, float, float]]) -> bool:
+    for qx, qy, qk in placed:
+        dx, dy = p[0] - qx, p[1] - qy
+        if dx * dx + dy * dy < (keepout + qk) ** 2:
+            return False
+    return True
+
+
+def sample_layout(
+    rng: np.random.Generator,
+    extents: Sequence[float],
+    objects: Mapping[str, ObjectSpec],
+    fixed: Mapping[str, Sequence[Sequence[float]]] | None = None,
+) -> dict[str, list[Point2]]:
+    """Sample positions for every object type (spec §6).
+
+    Args:
+        rng: the env's generator (a seed fixes the layout).
+        extents: ``(xmin, ymin, xmax, ymax)``.
+        objects: object types in placement order with counts and keepouts.
+        fixed: optional planted positions per type; they replace the sampled ones (their count
+            may differ from the spec's) and the others keep clear of them.
+
+    Returns:
+        Positions per type, ``{"agent": [(x, y)], "goal": [...], "hazards": [...], ...}``.
+
+    Raises:
+        LayoutError: if no layout is found in 10000 attempts.
+    """
+    fixed = dict(fixed or {})
+    planted = [
+        (float(p[0]), float(p[1]), objects[kind].keepout if kind in objects else 0.0)
+        for kind, points in fixed.items()
+        for p in points
+    ]
+    for _ in range(LAYOUT_ATTEMPTS):
+        placed = list(planted)
+        layout: dict[str, list[Point2]] = {}
+        ok = True
+        for kind, spec in objects.items():
+            if kind in fixed:
+                layout[kind] = [(float(p[0]), float(p[1])) for p in fixed[kind]]
+                continue
+            points: list[Point2] = []
+            for _i in range(spec.count):
+                for _draw_i in range(PLACEMENT_DRAWS):
+                    p = _draw(rng, extents, spec.keepout)
+                    if _clear(p, spec.keepout, placed):
+                        break
+                else:
+                    ok = False
+                    break
+                points.append(p)
+                placed.append((p[0], p[1], spec.keepout))
+            if not ok:
+                break
+            layout[kind] = points
+        if ok:
+            return layout
+    raise LayoutError(f"no layout satisfies the keepouts after {LAYOUT_ATTEMPTS} attempts")
+
+
+def sample_goal(
+    rng: np.random.Generator,
+    extents: Sequence[float],
+    keepout: float,
+    placed: Sequence[tuple[float, float, float]],
+) -> Point2 | None:
+    """Resample the goal against the current objects ``(x, y, keepout)`` (spec §6.6).
+
+    Returns:
+        The new goal, or ``None`` after 10000 failed draws (the episode then terminates).
+    """
+    for _ in range(GOAL_DRAWS):
+        p = _draw(rng, extents, keepout)
+        if _clear(p, keepout, placed):
+            return p
+    return None

@@ -1,0 +1,107 @@
+"""Top-down ``rgb_array`` frames of a :class:`~sims.safety_gym.env.SafetyGymEnv` (PIL, lazy).
+
+Colours: hazards blue discs, vases teal squares, pillars dark-blue discs, push box yellow,
+goal green disc (translucent ring), buttons orange (the goal button ringed green), gremlins
+purple squares, the robot red with a white heading line from its root; a caller's overlay
+(planned waypoints and subgoal) is drawn in black/magenta on top.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pymunk
+
+if TYPE_CHECKING:  # pragma: no cover
+    from sims.safety_gym.env import SafetyGymEnv
+
+COLOURS = {
+    "floor": (235, 235, 230),
+    "grid": (215, 215, 210),
+    "extent": (190, 190, 185),
+    "hazards": (70, 110, 230),
+    "vases": (30, 170, 170),
+    "pillars": (40, 40, 120),
+    "push_box": (225, 185, 40),
+    "goal": (60, 190, 60),
+    "buttons": (240, 140, 30),
+    "gremlins": (150, 60, 190),
+    "robot": (210, 40, 40),
+    "heading": (255, 255, 255),
+    "path": (20, 20, 20),
+    "subgoal": (230, 0, 200),
+}
+
+
+def render_topdown(env: SafetyGymEnv, size: int = 256) -> np.ndarray:
+    """Draw the current state; the view covers the placement extents plus 1 m of margin."""
+    from PIL import Image, ImageDraw
+
+    xmin, ymin, xmax, ymax = env.layout_spec.extents
+    half = max(xmax - xmin, ymax - ymin) / 2 + 1.0
+    cx, cy = (xmin + xmax) / 2, (ymin + ymax) / 2
+    scale = size / (2 * half)
+
+    def px(x: float, y: float) -> tuple[float, float]:
+        return ((x - cx + half) * scale, (cy + half - y) * scale)
+
+    def disc(draw, x, y, r, fill, outline=None, width=1):
+        (u, v), rr = px(x, y), r * scale
+        draw.ellipse([u - rr, v - rr, u + rr, v + rr], fill=fill, outline=outline, width=width)
+
+    image = Image.new("RGB", (size, size), COLOURS["floor"])
+    draw = ImageDraw.Draw(image)
+    for g in range(math.floor(cx - half), math.ceil(cx + half) + 1):
+        draw.line([px(g, cy - half), px(g, cy + half)], fill=COLOURS["grid"])
+    for g in range(math.floor(cy - half), math.ceil(cy + half) + 1):
+        draw.line([px(cx - half, g), px(cx + half, g)], fill=COLOURS["grid"])
+    draw.rectangle([px(xmin, ymax), px(xmax, ymin)], outline=COLOURS["extent"])
+
+    for x, y in env.hazards:
+        disc(draw, x, y, env.hazard_radius, COLOURS["hazards"])
+    if env.task != "button":
+        disc(draw, env.goal_x, env.goal_y, env.goal_size, None, COLOURS["goal"], 2)
+        disc(draw, env.goal_x, env.goal_y, 0.05, COLOURS["goal"])
+    for k, (x, y) in enumerate(env.buttons):
+        disc(draw, x, y, 0.1, COLOURS["buttons"])
+        if k == env.goal_button:
+            disc(draw, x, y, env.goal_size, None, COLOURS["goal"], 3)
+    for x, y in env.pillars:
+        disc(draw, x, y, 0.2, COLOURS["pillars"])
+
+    def body_shapes(body: pymunk.Body, colour) -> None:
+        for shape in body.shapes:
+            if isinstance(shape, pymunk.Circle):
+                p = body.local_to_world(shape.offset)
+                disc(draw, p.x, p.y, shape.radius, colour)
+            elif isinstance(shape, pymunk.Poly):
+                pts = [px(*body.local_to_world(v)) for v in shape.get_vertices()]
+                draw.polygon(pts, fill=colour)
+
+    for body in env.vase_bodies:
+        body_shapes(body, COLOURS["vases"])
+    for body in env.gremlin_bodies:
+        body_shapes(body, COLOURS["gremlins"])
+    if env.box_body is not None:
+        body_shapes(env.box_body, COLOURS["push_box"])
+    body_shapes(env.body, COLOURS["robot"])
+    rx, ry = env.body.position
+    yaw = env.robot_forward_heading
+    draw.line([px(rx, ry), px(rx + 0.18 * math.cos(yaw), ry + 0.18 * math.sin(yaw))],
+              fill=COLOURS["heading"], width=max(1, size // 128))  # fmt: skip
+    disc(draw, rx, ry, 0.025, COLOURS["heading"])
+
+    if env._overlay_waypoints is not None and len(env._overlay_waypoints):
+        pts = [px(float(x), float(y)) for x, y in env._overlay_waypoints]
+        if len(pts) > 1:
+            draw.line(pts, fill=COLOURS["path"], width=max(1, size // 200))
+        for u, v in pts:
+            draw.ellipse([u - 1.5, v - 1.5, u + 1.5, v + 1.5], fill=COLOURS["path"])
+    if env._overlay_subgoal is not None:
+        u, v = px(*map(float, env._overlay_subgoal))
+        r = max(3.0, 0.06 * scale)
+        draw.line([u - r, v - r, u + r, v + r], fill=COLOURS["subgoal"], width=2)
+        draw.line([u - r, v + r, u + r, v - r], fill=COLOURS["subgoal"], width=2)
+    return np.asarray(image, dtype=np.uint8)
