@@ -180,6 +180,29 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
         """``(s, d, path_heading, curvature)`` of the car's projection on the centre line."""
         return self._frenet
 
+    def set_vehicle_state(self, state: State) -> tuple[np.ndarray, float, dict[str, Any]]:
+        """Place the car at ``state = (x, y, psi, v_x, v_y, r)`` (tests, demonstrations).
+
+        Returns:
+            ``(observation, reward, info)`` of that state, as :meth:`step` would report them
+            on arriving there (without the termination terms).
+        """
+        values = tuple(float(v) for v in state)
+        if len(values) != 6 or not all(math.isfinite(v) for v in values):
+            raise ValueError(f"state must be six finite numbers (x, y, psi, v_x, v_y, r), "
+                             f"got {state!r}")
+        x, y, psi, v_x, v_y, r = values
+        self._state = (x, y, wrap_angle(psi), v_x, v_y, r)
+        if isinstance(self.track, RandomPathTrack):
+            self._hint = self.track.nearest_index(x, y, 0)
+            best = (self.track.xs[self._hint] - x) ** 2 + (self.track.ys[self._hint] - y) ** 2
+            for i in range(0, self.track.last_index + 1, 20):  # global search for teleports
+                dist = (self.track.xs[i] - x) ** 2 + (self.track.ys[i] - y) ** 2
+                if dist < best:
+                    best, self._hint = dist, i
+        obs, reward, _, info = self._observe()
+        return obs, reward, info
+
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:

@@ -146,7 +146,7 @@ class RandomPathTrack:
         return i
 
     def project(self, x: float, y: float, hint: int = 0) -> tuple[float, float, float, float, int]:
-        """Frenet coordinates of ``(x, y)`` using the tangent at the nearest sample.
+        """Frenet coordinates of ``(x, y)``, expanded to second order about the nearest sample.
 
         Args:
             x: World x [m].
@@ -158,11 +158,15 @@ class RandomPathTrack:
         """
         i = self.nearest_index(x, y, hint)
         heading = self.headings[i]
+        curvature = self.curvatures[i]
         c = math.cos(heading)
         sn = math.sin(heading)
         dx = x - self.xs[i]
         dy = y - self.ys[i]
-        return i * self.spacing + c * dx + sn * dy, c * dy - sn * dx, heading, self.curvatures[i], i
+        along = c * dx + sn * dy
+        # second-order Taylor expansion of the path about sample i (|along| <= spacing / 2)
+        return (i * self.spacing + along, c * dy - sn * dx - 0.5 * curvature * along * along,
+                heading + curvature * along, curvature, i)
 
     def _index(self, s: float) -> tuple[int, float]:
         u = s / self.spacing
