@@ -1,0 +1,19 @@
+"""Safe RL algorithms (SPEC §4.1): PPO, PPO-Lag, SP-PPO-Lag, TRPO-Lag, CPO, SAC.
+
+Hierarchy (at most two levels below the shared bases): ``OnPolicyAlgorithm -> PPO -> PPOLag ->
+SPPPOLag``, ``OnPolicyAlgorithm -> TRPO -> TRPOLag / CPO``, ``Algorithm -> SAC``. Everything else
+is composition: :mod:`semdp.common.lagrange`, :mod:`semdp.common.advantages`, ...
+"""
+
+from semdp.algos.base import Algorithm, OnPolicyAlgorithm
+from semdp.algos.cpo import CPO
+from semdp.algos.ppo import PPO
+from semdp.algos.ppo_lag import PPOLag
+from semdp.algos.sac import SAC
+from semdp.algos.sp_ppo_lag import SPPPOLag
+from semdp.algos.trpo import TRPO
+from semdp.algos.trpo_lag import TRPOLag
+
+__all__ = [
+    "CPO", "PPO", "SAC", "TRPO", "Algorithm", "OnPolicyAlgorithm", "PPOLag", "SPPPOLag", "TRPOLag",
+]

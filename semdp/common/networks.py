@@ -1,0 +1,132 @@
+"""Actor and critic networks (SPEC §4.1; defaults from research/saferl_anchors.md "Implications").
+
+On-policy: separate MLPs for the Gaussian actor (state-independent learnable ``log_std``), the
+reward critic and the cost critic, 64x64 tanh, orthogonal init (CleanRL gains: sqrt(2) hidden,
+0.01 actor head, 1.0 critic head). SAC: tanh-squashed Gaussian actor with ``log_std`` squashed
+into [-5, 2] and twin Q networks, 256x256 ReLU.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+
+import torch
+from torch import nn
+from torch.distributions import Normal
+
+ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
+
+
+def mlp(
+    in_dim: int,
+    hidden_sizes: Sequence[int],
+    out_dim: int,
+    activation: str = "tanh",
+    out_gain: float = 1.0,
+) -> nn.Sequential:
+    """A fully connected network with orthogonal initialisation and zero biases."""
+    if activation not in ACTIVATIONS:
+        raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}, got {activation!r}")
+    layers: list[nn.Module] = []
+    sizes = [in_dim, *hidden_sizes]
+    for a, b in itertools.pairwise(sizes):
+        linear = nn.Linear(a, b)
+        nn.init.orthogonal_(linear.weight, math.sqrt(2))
+        nn.init.zeros_(linear.bias)
+        layers += [linear, ACTIVATIONS[activation]()]
+    head = nn.Linear(sizes[-1], out_dim)
+    nn.init.orthogonal_(head.weight, out_gain)
+    nn.init.zeros_(head.bias)
+    layers.append(head)
+    return nn.Sequential(*layers)
+
+
+class GaussianActor(nn.Module):
+    """Diagonal Gaussian policy with a state-independent learnable ``log_std``."""
+
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        hidden_sizes: Sequence[int] = (64, 64),
+        activation: str = "tanh",
+        log_std_init: float = 0.0,
+    ) -> None:
+        super().__init__()
+        self.mean_net = mlp(obs_dim, hidden_sizes, act_dim, activation, out_gain=0.01)
+        self.log_std = nn.Parameter(torch.full((act_dim,), float(log_std_init)))
+
+    def distribution(self, obs: torch.Tensor) -> Normal:
+        """pi(.|obs)."""
+        return Normal(self.mean_net(obs), self.log_std.exp().expand(obs.shape[0], -1))
+
+    def log_prob(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """Summed log-density of ``actions`` (shape ``(batch,)``)."""
+        return self.distribution(obs).log_prob(actions).sum(-1)
+
+
+class ValueCritic(nn.Module):
+    """State-value function V(s) (reward or cost)."""
+
+    def __init__(
+        self, obs_dim: int, hidden_sizes: Sequence[int] = (64, 64), activation: str = "tanh"
+    ) -> None:
+        super().__init__()
+        self.net = mlp(obs_dim, hidden_sizes, 1, activation, out_gain=1.0)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        """V(obs), shape ``(batch,)``."""
+        return self.net(obs).squeeze(-1)
+
+
+class SquashedGaussianActor(nn.Module):
+    """tanh-squashed Gaussian policy for SAC; actions in [-1, 1]."""
+
+    LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
+
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        hidden_sizes: Sequence[int] = (256, 256),
+        activation: str = "relu",
+    ) -> None:
+        super().__init__()
+        self.net = mlp(obs_dim, hidden_sizes, 2 * act_dim, activation, out_gain=0.01)
+
+    def forward(
+        self, obs: torch.Tensor, deterministic: bool = False
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Sample (or take the mode of) the squashed policy: ``(action, log_prob)``."""
+        mean, raw_log_std = self.net(obs).chunk(2, dim=-1)
+        span = self.LOG_STD_MAX - self.LOG_STD_MIN
+        log_std = self.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
+        dist = Normal(mean, log_std.exp())
+        pre_tanh = mean if deterministic else dist.rsample()
+        action = torch.tanh(pre_tanh)
+        # log|d tanh(u)/du| = 2 (log 2 - u - softplus(-2u)), the numerically stable form.
+        correction = 2.0 * (math.log(2.0) - pre_tanh - nn.functional.softplus(-2.0 * pre_tanh))
+        log_prob = (dist.log_prob(pre_tanh) - correction).sum(-1)
+        return action, log_prob
+
+
+class TwinQCritic(nn.Module):
+    """Two independent Q(s, a) networks (clipped double Q)."""
+
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        hidden_sizes: Sequence[int] = (256, 256),
+        activation: str = "relu",
+    ) -> None:
+        super().__init__()
+        self.q1 = mlp(obs_dim + act_dim, hidden_sizes, 1, activation)
+        self.q2 = mlp(obs_dim + act_dim, hidden_sizes, 1, activation)
+
+    def forward(self, obs: torch.Tensor, act: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(Q1, Q2), each of shape ``(batch,)``."""
+        x = torch.cat([obs, act], dim=-1)
+        return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)

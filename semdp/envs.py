@@ -1,0 +1,141 @@
+"""Environment factory: ``gymnasium.make`` + optional per-env wrapper + vectorisation (SPEC §4.1).
+
+Importing this module registers the ``sims/...`` ids (pymunk Safety Gym replica, driving tasks)
+and the test CMDP ``semdp/SpeedLimit-v0``.
+
+Vector envs use gymnasium's ``SyncVectorEnv`` with ``AutoresetMode.SAME_STEP``: when a sub-env's
+episode ends, the returned observation is already the first one of the next episode and the
+true final observation / info are in ``infos["final_obs"]`` / ``infos["final_info"]``.
+:func:`split_step_infos` resolves both for the algorithms.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import logging
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+
+import semdp.testbed  # noqa: F401  (registers semdp/SpeedLimit-v0)
+
+logger = logging.getLogger(__name__)
+
+try:  # the pymunk envs are optional at import time so the trainer works while they are built
+    importlib.import_module("sims")
+except ImportError as exc:  # pragma: no cover - depends on the checkout
+    logger.warning("could not import sims (%s); sims/... ids are unavailable", exc)
+
+
+class ZeroCost(gym.Wrapper):
+    """Adds ``info["cost"] = 0.0`` to envs that have no cost (e.g. ``Pendulum-v1``)."""
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """Step and add a zero cost when none is reported."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info.setdefault("cost", 0.0)
+        return obs, reward, terminated, truncated, info
+
+
+class RequireCost(gym.Wrapper):
+    """Fails loudly on the first step that lacks ``info["cost"]``."""
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """Step and check for the cost."""
+        out = self.env.step(action)
+        if "cost" not in out[4]:
+            raise KeyError(
+                f"{self.env.spec.id if self.env.spec else self.env} reports no info['cost']; "
+                "set env.add_zero_cost=true for an unconstrained task"
+            )
+        return out
+
+
+def make_env(
+    env_id: str,
+    kwargs: Mapping[str, Any] | None = None,
+    wrapper: Callable[[gym.Env], gym.Env] | None = None,
+    add_zero_cost: bool = False,
+) -> gym.Env:
+    """One environment: ``gymnasium.make(env_id, **kwargs)``, then ``wrapper`` and the cost check.
+
+    A module-level function so that ``functools.partial(make_env, ...)`` pickles (checkpoints
+    pickle the vector env).
+    """
+    if env_id not in gym.registry:
+        known = sorted(k for k in gym.registry if k.startswith(("sims/", "semdp/")))
+        raise ValueError(f"unknown env id {env_id!r}; registered project ids: {known}")
+    env = gym.make(env_id, **dict(kwargs or {}))
+    if wrapper is not None:
+        env = wrapper(env)
+    return ZeroCost(env) if add_zero_cost else RequireCost(env)
+
+
+def _resolve_wrapper(wrapper: Any) -> Callable[[gym.Env], gym.Env] | None:
+    if wrapper is None or callable(wrapper):
+        return wrapper
+    from hydra.utils import instantiate
+
+    resolved = instantiate(wrapper)
+    if not callable(resolved):
+        raise ValueError(f"env.wrapper must instantiate to a callable, got {type(resolved)}")
+    return resolved
+
+
+def make_vec_env(
+    env_cfg: Mapping[str, Any], seed: int, num_envs: int | None = None
+) -> gym.vector.SyncVectorEnv:
+    """A seeded ``SyncVectorEnv`` from an env config node.
+
+    Args:
+        env_cfg: mapping with ``id``, ``num_envs``, ``kwargs`` (dict), optional ``wrapper`` (a
+            callable, or a Hydra node with ``_target_`` and ``_partial_: true`` applied to each
+            sub-env before vectorisation) and optional ``add_zero_cost``.
+        seed: seeds the action spaces; the algorithm seeds ``reset``.
+        num_envs: overrides ``env_cfg["num_envs"]``.
+    """
+    n = int(num_envs if num_envs is not None else env_cfg.get("num_envs", 1))
+    if n < 1:
+        raise ValueError(f"env.num_envs must be >= 1, got {n}")
+    kwargs = dict(env_cfg.get("kwargs") or {})
+    factory = functools.partial(
+        make_env,
+        env_cfg["id"],
+        kwargs,
+        _resolve_wrapper(env_cfg.get("wrapper")),
+        bool(env_cfg.get("add_zero_cost", False)),
+    )
+    envs = gym.vector.SyncVectorEnv(
+        [factory] * n, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
+    )
+    envs.action_space.seed(seed)
+    for i, sub in enumerate(envs.envs):
+        sub.action_space.seed(seed + i)
+    return envs
+
+
+def split_step_infos(
+    next_obs: npt.NDArray[Any], infos: Mapping[str, Any], episode_end: npt.NDArray[np.bool_]
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[Any]]:
+    """Per-env step costs and true final observations of a SAME_STEP vector step.
+
+    Returns:
+        ``(costs, final_obs)`` where ``final_obs[i]`` is ``next_obs[i]`` unless env ``i`` ended
+        its episode, in which case it is the last observation of that episode.
+    """
+    n = len(episode_end)
+    costs = np.zeros(n, dtype=np.float64)
+    final_obs = np.array(next_obs, copy=True)
+    if "cost" in infos:
+        mask = infos.get("_cost", np.ones(n, dtype=bool))
+        costs[mask] = np.asarray(infos["cost"], dtype=np.float64)[mask]
+    if np.any(episode_end):
+        final_info = infos["final_info"]
+        for i in np.flatnonzero(episode_end):
+            final_obs[i] = infos["final_obs"][i]
+            costs[i] = float(final_info["cost"][i])
+    return costs, final_obs

@@ -1,0 +1,151 @@
+"""``semdp-train``: the Hydra training app (SPEC §4.3, §5).
+
+    semdp-train algo=ppo_lag env=point_goal1 seed=0 cost_limit=25
+    semdp-train -m algo=ppo_lag,sp_ppo_lag seed=0,1,2      # joblib launcher, 2 jobs
+    semdp-train algo=sac env=pendulum budget=ci
+    semdp-train resume=outputs/train/<run dir>
+
+Writes the run-directory contract: ``config.yaml`` (resolved), ``progress.csv``,
+``checkpoints/last.pt`` and ``metrics.json``. A run that raises leaves its partial CSV and a
+``metrics.json`` with ``status: failed`` and the error; inside a multirun the error is recorded
+and the sweep goes on, in a single run it is re-raised.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import traceback
+from pathlib import Path
+from typing import Any
+
+import hydra
+import torch
+from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf, open_dict
+
+from semdp.algos.base import CHECKPOINT_NAME, Algorithm
+from semdp.common.logger import write_metrics
+from semdp.common.seeding import seed_everything
+from semdp.envs import make_vec_env
+from semdp.paths import CONF_DIR
+
+logger = logging.getLogger(__name__)
+
+
+def validate_config(cfg: DictConfig) -> None:
+    """Fail fast, naming the offending key, before anything is built."""
+
+    def number(key: str) -> float:
+        value = OmegaConf.select(cfg, key)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f"{key} must be a number, got {value!r}")
+        return float(value)
+
+    if cfg.get("algo") is None or "_target_" not in cfg.algo:
+        raise ValueError("algo must be chosen from conf/algo (e.g. algo=ppo_lag); got none")
+    cost_limit = number("cost_limit")
+    if not math.isfinite(cost_limit) or cost_limit < 0:
+        raise ValueError(f"cost_limit must be a finite number >= 0, got {cost_limit}")
+    for key in ("total_steps", "algo.steps_per_epoch"):
+        if number(key) <= 0:
+            raise ValueError(f"{key} must be > 0, got {OmegaConf.select(cfg, key)}")
+    for key in ("eval_every", "eval_episodes", "final_eval_episodes", "checkpoint_every"):
+        if number(key) < 0:
+            raise ValueError(f"{key} must be >= 0, got {OmegaConf.select(cfg, key)}")
+    if number("seed") < 0:
+        raise ValueError(f"seed must be >= 0, got {cfg.seed}")
+    if number("torch_threads") < 1:
+        raise ValueError(f"torch_threads must be >= 1, got {cfg.torch_threads}")
+    if number("env.num_envs") < 1:
+        raise ValueError(f"env.num_envs must be >= 1, got {cfg.env.num_envs}")
+    if not cfg.env.get("id"):
+        raise ValueError("env.id must name a gymnasium id, got none")
+
+
+def build_algorithm(cfg: DictConfig) -> Algorithm:
+    """Seed, make the training and evaluation vector envs, and instantiate ``cfg.algo``."""
+    seed_everything(int(cfg.seed))
+    envs = make_vec_env(cfg.env, seed=int(cfg.seed))
+    eval_n = max(1, min(int(cfg.env.num_envs), max(int(cfg.eval_episodes), 1)))
+    eval_envs = make_vec_env(cfg.env, seed=int(cfg.seed) + 1, num_envs=eval_n)
+    return instantiate(cfg.algo, envs=envs, eval_envs=eval_envs, seed=int(cfg.seed),
+                       _convert_="all")
+
+
+def _choices(cfg: DictConfig) -> tuple[str, str]:
+    try:
+        choices = HydraConfig.get().runtime.choices
+        return str(choices["algo"]), str(choices["env"])
+    except (ValueError, KeyError):  # composed outside a Hydra app (tests)
+        return str(cfg.algo._target_).rsplit(".", 1)[-1], str(cfg.env.id)
+
+
+def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
+    """Train (or resume) one run into ``run_dir``; return the final ``metrics.json`` content."""
+    run_dir = Path(run_dir)
+    resume = cfg.get("resume")
+    threads = int(cfg.get("torch_threads", 1))
+    if resume:
+        run_dir = Path(resume)
+        ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
+        if not ckpt.is_file() or not (run_dir / "config.yaml").is_file():
+            raise ValueError(f"resume={resume}: no config.yaml and checkpoints/{CHECKPOINT_NAME}")
+        cfg = OmegaConf.load(run_dir / "config.yaml")
+        with open_dict(cfg):
+            cfg.resume = str(resume)
+    validate_config(cfg)
+    torch.set_num_threads(threads)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    algo_name, env_name = (cfg.get("algo_name"), cfg.get("env_name"))
+    if not algo_name:
+        algo_name, env_name = _choices(cfg)
+    meta = {"algo": algo_name, "env": env_name, "seed": int(cfg.seed)}
+    if not resume:
+        with open_dict(cfg):
+            cfg.algo_name, cfg.env_name = algo_name, env_name
+        OmegaConf.save(cfg, run_dir / "config.yaml", resolve=True)
+    algo: Algorithm | None = None
+    try:
+        algo = build_algorithm(cfg)
+        if resume:
+            algo.load_checkpoint(run_dir / "checkpoints" / CHECKPOINT_NAME)
+            logger.info("resuming %s at epoch %d (%d env steps)", run_dir, algo.epoch,
+                        algo.env_steps)
+        return algo.learn(
+            total_steps=int(cfg.total_steps), run_dir=run_dir,
+            eval_every=int(cfg.eval_every), eval_episodes=int(cfg.eval_episodes),
+            final_eval_episodes=int(cfg.final_eval_episodes),
+            checkpoint_every=int(cfg.checkpoint_every), resume=bool(resume), metadata=meta,
+        )
+    except Exception as exc:
+        metrics = {
+            "status": "failed", "error": f"{type(exc).__name__}: {exc}", **meta,
+            "env_steps": algo.env_steps if algo else 0,
+            "wall_time_s": algo.wall_time if algo else 0.0, "eval": None,
+        }
+        write_metrics(run_dir / "metrics.json", metrics)
+        (run_dir / "error.txt").write_text(traceback.format_exc())
+        raise
+
+
+@hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="train")
+def main(cfg: DictConfig) -> float | None:
+    """Hydra entry point; returns the final evaluation return (for sweepers)."""
+    hydra_cfg = HydraConfig.get()
+    multirun = hydra_cfg.mode == RunMode.MULTIRUN
+    try:
+        metrics = run(cfg, hydra_cfg.runtime.output_dir)
+    except Exception as exc:
+        if not multirun:
+            raise
+        logger.error("run failed (recorded in metrics.json; the sweep continues): %s", exc)
+        return None
+    ev = metrics.get("eval")
+    return None if not ev else float(ev["return_mean"])
+
+
+if __name__ == "__main__":
+    main()
