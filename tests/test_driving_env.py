@@ -91,7 +91,7 @@ def test_circle_reward_and_cost_follow_eq_a1_a2() -> None:
 
 @pytest.mark.parametrize("env_cls", [DriveCircleEnv, DriveTrajectoryEnv])
 def test_env_derivative_observations_match_finite_differences(env_cls: type) -> None:
-    env = env_cls(desired_speed=2.0, dt=0.01, max_episode_steps=400)
+    env = env_cls(desired_speed=2.0, dt=0.01, episode_length=400)
     controller = PurePursuitController()
     obs, _ = env.reset(seed=1)
     history = [obs]
@@ -143,7 +143,7 @@ def test_random_path_is_seeded_smooth_and_curvature_bounded() -> None:
 
 
 def test_env_terminates_far_off_road_with_remaining_steps_charged() -> None:
-    env = DriveCircleEnv(radius=1.0, road_width=0.5, off_road_margin=0.5, max_episode_steps=100)
+    env = DriveCircleEnv(radius=1.0, road_width=0.5, off_road_margin=0.5, episode_length=100)
     env.reset(seed=0)
     for _ in range(10):
         env.step(np.zeros(2, dtype=np.float32))
@@ -165,7 +165,7 @@ def test_env_terminates_far_off_road_with_remaining_steps_charged() -> None:
 
 
 def test_env_truncates_at_episode_length() -> None:
-    env = DriveCircleEnv(max_episode_steps=7, desired_speed=1.0)
+    env = DriveCircleEnv(episode_length=7, desired_speed=1.0)
     env.reset(seed=0)
     flags = [env.step(np.zeros(2, dtype=np.float32))[2:4] for _ in range(7)]
     assert flags == [(False, False)] * 6 + [(False, True)]
@@ -193,7 +193,7 @@ def test_env_rejects_nan_and_clips_out_of_range_actions() -> None:
         ({"desired_speed": float("nan")}, "desired_speed"),
         ({"road_width": -1.0}, "road_width"),
         ({"dt": 0.0}, "dt"),
-        ({"max_episode_steps": 0}, "max_episode_steps"),
+        ({"episode_length": 0}, "episode_length"),
         ({"speed_weight": -1.0}, "speed_weight"),
         ({"render_mode": "human"}, "render_mode"),
         ({"radius": 0.5}, "wider than its turns"),

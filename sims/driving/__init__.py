@@ -1,8 +1,10 @@
 """Driving tasks: dynamic bicycle model with brush tyres (Circle, Trajectory), thesis App. A.2.
 
 Importing this package registers ``sims/DriveCircle-v0`` and ``sims/DriveTrajectory-v0``.
-Episode length is a constructor argument (``max_episode_steps``, default 200 steps of 0.05 s);
-the env truncates by itself, so no TimeLimit wrapper is registered.
+Episode length is a constructor argument (``episode_length``, default 200 steps of 0.05 s =
+10 s); the env truncates by itself, so no TimeLimit wrapper is registered. Pass
+``gym.make(id, episode_length=N)``: gymnasium's own ``max_episode_steps`` argument would only add
+an outer TimeLimit and leave the env's horizon (used for the termination charge) unchanged.
 """
 
 from __future__ import annotations

@@ -23,10 +23,12 @@ Reward (Eq. A.1 written as a cost; the agent maximises its negative)::
 Cost (Eq. A.2, d_0 = half the road width): ``info["cost"] = max(|d| - d_0, 0)``, also reported
 as ``info["cost_off_road"]``.
 
-Episode end. Truncation after ``max_episode_steps`` (the env counts its own steps; no TimeLimit
-wrapper is registered). Termination when the car is far off the road, ``|d| > d_0 +
-off_road_margin``; the terminal step then also collects the terminal step's reward and cost for
-each remaining step of the episode (as if the car stayed there), reported as
+Episode end. Truncation after ``episode_length`` steps (the env counts its own steps; no
+TimeLimit wrapper is registered; the Trajectory env also truncates if the car reaches the end
+of its path, which needs more than 10 m/s on average). Termination when the car is far off the
+road, ``|d| > d_0 + off_road_margin``; the terminal step then also collects the terminal
+step's reward and cost for each remaining step of the episode (as if the car stayed there),
+reported as
 ``info["reward_termination"]`` and ``info["cost_termination"]`` (``info["cost"]`` is the sum of
 the named cost terms), so that leaving the road never shortens the penalties of an episode.
 ``terminate_off_road=False`` disables termination.
@@ -67,7 +69,7 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
     Args:
         desired_speed: v_d [m/s] in (0, 10] (the thesis sweeps 1..6).
         road_width: Road width [m]; d_0 = road_width / 2.
-        max_episode_steps: Episode length in steps (truncation).
+        episode_length: Episode length in steps (truncation).
         speed_weight: w_1 of Eq. A.1 (default 0.25, aa_simulation's CircleEnv weight).
         heading_weight: w_2 of Eq. A.1.
         dt: Control period [s]; the model takes ``ceil(dt / max_substep)`` RK4 substeps.
@@ -84,7 +86,7 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
         self,
         desired_speed: float = 2.0,
         road_width: float = 0.5,
-        max_episode_steps: int = 200,
+        episode_length: int = 200,
         speed_weight: float = 0.25,
         heading_weight: float = 1.0,
         dt: float = 0.05,
@@ -102,16 +104,16 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
         for name, weight in (("speed_weight", speed_weight), ("heading_weight", heading_weight)):
             if not (math.isfinite(weight) and weight >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {weight!r}")
-        if int(max_episode_steps) != max_episode_steps or max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be a positive integer, "
-                             f"got {max_episode_steps!r}")
+        if int(episode_length) != episode_length or episode_length < 1:
+            raise ValueError(f"episode_length must be a positive integer, "
+                             f"got {episode_length!r}")
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of "
                              f"{self.metadata['render_modes']}, got {render_mode!r}")
         self.desired_speed = float(desired_speed)
         self.road_width = float(road_width)
         self.half_width = 0.5 * self.road_width
-        self.max_episode_steps = int(max_episode_steps)
+        self.episode_length = int(episode_length)
         self.speed_weight = float(speed_weight)
         self.heading_weight = float(heading_weight)
         self.dt = float(dt)
@@ -249,9 +251,9 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
 
         obs, reward, cost, info = self._observe()
         terminated = self.terminate_off_road and abs(self._frenet[1]) > self.termination_distance
-        truncated = self._steps >= self.max_episode_steps or self._path_ended()
+        truncated = self._steps >= self.episode_length or self._path_ended()
         if terminated:
-            remaining = self.max_episode_steps - self._steps
+            remaining = self.episode_length - self._steps
             info["reward_termination"] = remaining * reward
             info["cost_termination"] = remaining * cost
             info["cost"] = cost * (1 + remaining)
@@ -318,7 +320,7 @@ class DriveTrajectoryEnv(DrivingEnv):
     """``sims/DriveTrajectory-v0``: follow a seeded random smooth path (App. A.2, Fig. A.2 right).
 
     A new path (:class:`RandomPathTrack`) is drawn from the env's generator at every reset; its
-    length covers ``max_episode_steps * dt`` at 10.5 m/s (above the top speed) plus the preview.
+    length covers ``episode_length * dt`` at 10.5 m/s (above the top speed) plus the preview.
 
     Args:
         preview_points: K, number of centre-line points in the observation.
@@ -355,7 +357,7 @@ class DriveTrajectoryEnv(DrivingEnv):
         super().__init__(**kwargs)
 
     def _make_track(self) -> RandomPathTrack:
-        self._path_length = (10.5 * self.max_episode_steps * self.dt + self.START_ARC_LENGTH
+        self._path_length = (10.5 * self.episode_length * self.dt + self.START_ARC_LENGTH
                              + self.preview_points * self.preview_spacing + 2.0)
         return self._draw_track(np.random.default_rng(0))
 
