@@ -218,10 +218,11 @@ def test_env_renders_road_car_and_trail(env_id: str) -> None:
     assert gym.make(env_id).unwrapped.render() is None
 
 
-def test_pure_pursuit_stays_on_circle_at_2_and_leaves_it_at_6() -> None:
+@pytest.mark.parametrize("env_cls", [DriveCircleEnv, DriveTrajectoryEnv])
+def test_pure_pursuit_stays_on_the_road_at_2_and_leaves_it_at_6(env_cls: type) -> None:
     controller = PurePursuitController()
-    slow = [run_episode(DriveCircleEnv(desired_speed=2.0), controller, s) for s in range(3)]
-    fast = [run_episode(DriveCircleEnv(desired_speed=6.0), controller, s) for s in range(3)]
+    slow = [run_episode(env_cls(desired_speed=2.0), controller, s) for s in range(3)]
+    fast = [run_episode(env_cls(desired_speed=6.0), controller, s) for s in range(3)]
     assert all(r["cost"] == 0.0 and r["length"] == 200 for r in slow)
     assert all(r["cost"] > 1.0 for r in fast)
     assert min(r["return"] for r in slow) > max(r["return"] for r in fast)

@@ -73,6 +73,19 @@ def test_bicycle_brakes_to_a_stop_without_reversing() -> None:
     assert states[:, 3].min() > -1e-6
 
 
+def test_bicycle_starts_from_standstill_on_the_kinematic_model() -> None:
+    delta = 0.3
+    states = _simulate((0.0, 0.0, 0.0, 0.0, 0.0, 0.0), delta, 0.5, 1.0, dt=0.05, substeps=4)
+    assert np.all(np.isfinite(states))
+    speed = np.hypot(states[:, 3], states[:, 4])
+    kinematic = speed < PARAMS.blend_speed_low
+    assert kinematic[-1] and states[-1, 3] > 0.1  # still slow, but moving
+    yaw_rate = states[:, 3] * math.tan(delta) / PARAMS.wheelbase  # r = v_x tan(delta) / L
+    np.testing.assert_allclose(states[kinematic, 5][5:], yaw_rate[kinematic][5:], atol=0.02)
+    np.testing.assert_allclose(states[kinematic, 4], PARAMS.cg_to_rear * states[kinematic, 5],
+                               atol=0.01)
+
+
 @pytest.mark.parametrize("speed", [0.3, 1.0])  # kinematic blend regime and dynamic regime
 def test_bicycle_low_speed_turn_radius_is_kinematic(speed: float) -> None:
     delta = 0.2
