@@ -1,0 +1,206 @@
+"""IPOPT backend: Eq. 3.3 with hard pairwise clearance constraints (SPEC §2.2).
+
+``min ||x_N - g||^2 + rho h_smooth`` subject to ``h_smooth <= sigma_smooth`` and, per waypoint i
+and obstacle j, ``||x_i - o_j||^2 >= (c_j + delta)^2`` (the aggregated hinge of Eq. 3.3 is
+degenerate for an interior-point method: research note §1.7). With the continuous option every
+segment ``[x_i, x_{i+1}]`` and obstacle j get a separating direction ``n_ij`` (two extra variables)
+with ``n_ij^T (x_i - o_j) >= c_j + delta``, ``n_ij^T (x_{i+1} - o_j) >= c_j + delta`` and
+``||n_ij||^2 <= 1``, which holds iff the whole segment keeps the clearance.
+
+One parametric ``nlpsol`` is built (SX) per compiled obstacle-slot count and cached; unused slots
+and pairs a waypoint cannot reach get infinite bounds, so the structure never changes. Escape mode
+(start inside a clearance) relaxes those obstacles' rows to "no closer than the start" and adds
+``lambda_max sum_i (c_j^2 - ||x_i - o_j||^2)_+^2`` to the objective to push the plan outwards.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from solvers.planner.problem import GPPrior
+
+#: IPOPT options for re-solves from a good initial guess (research note §1.3-1.4).
+IPOPT_OPTIONS: dict[str, object] = {
+    "print_level": 0,
+    "sb": "yes",
+    "linear_solver": "mumps",
+    "tol": 1e-6,
+    "constr_viol_tol": 1e-7,
+    "acceptable_tol": 1e-4,
+    "acceptable_iter": 5,
+    "max_iter": 200,
+    "max_wall_time": 1.0,
+    "mu_strategy": "monotone",
+    "bound_push": 1e-6,
+    "bound_frac": 1e-6,
+    "slack_bound_push": 1e-6,
+    "slack_bound_frac": 1e-6,
+}
+
+
+@dataclass
+class IpoptProgram:
+    """A built IPOPT solver for ``n_slots`` obstacle slots."""
+
+    solver: ca.Function
+    n_slots: int
+    continuous: bool
+    n_var: int
+    n_con: int
+
+
+def build_ipopt(
+    prior: GPPrior,
+    n_slots: int,
+    *,
+    smooth_regulariser: float,
+    continuous: bool,
+    ipopt_options: dict[str, object],
+) -> IpoptProgram:
+    """Build the parametric NLP; ``p = [g (2), centres (2 n_slots), c (n_slots), w_esc (n_slots)]``."""
+    n = prior.n_waypoints - 1
+    z = ca.SX.sym("z", prior.n_var)
+    p = ca.SX.sym("p", 2 + 4 * n_slots)
+    goal = p[0:2]
+    positions = [ca.vertcat(0.0, 0.0)] + [z[2 * i : 2 * i + 2] for i in range(n)]
+    h = ca.sumsqr(ca.mtimes(ca.DM(prior.W), z))
+    objective = ca.sumsqr(positions[-1] - goal) + smooth_regulariser * h
+    constraints = [h]
+    normals: list[ca.SX] = []
+    for j in range(n_slots):
+        centre = p[2 + 2 * j : 4 + 2 * j]
+        radius = p[2 + 2 * n_slots + j]
+        escape_weight = p[2 + 3 * n_slots + j]
+        for i in range(1, n + 1):
+            sq = ca.sumsqr(positions[i] - centre)
+            objective += escape_weight * ca.fmax(0.0, radius**2 - sq) ** 2
+            if not continuous:
+                constraints.append(sq)
+        if continuous:
+            for i in range(n):
+                normal = ca.SX.sym(f"n_{j}_{i}", 2)
+                normals.append(normal)
+                constraints.append(ca.dot(normal, positions[i] - centre))
+                constraints.append(ca.dot(normal, positions[i + 1] - centre))
+                constraints.append(ca.sumsqr(normal))
+    x = ca.vertcat(z, *normals)
+    g = ca.vertcat(*constraints)
+    options = {"print_time": False, "ipopt": dict(ipopt_options)}
+    solver = ca.nlpsol(
+        f"planner_ipopt_{n_slots}{'_cont' if continuous else ''}",
+        "ipopt",
+        {"x": x, "p": p, "f": objective, "g": g},
+        options,
+    )
+    return IpoptProgram(solver, n_slots, continuous, int(x.numel()), int(g.numel()))
+
+
+@dataclass
+class IpoptOutcome:
+    """Raw IPOPT result (start-relative ``z``)."""
+
+    z: np.ndarray
+    status: str
+    success: bool
+    iterations: int
+
+
+def solve_ipopt(
+    program: IpoptProgram,
+    prior: GPPrior,
+    z0: np.ndarray,
+    goal: np.ndarray,
+    centres: np.ndarray,
+    clearances: np.ndarray,
+    required: np.ndarray,
+    escape: np.ndarray,
+    reach_radii: np.ndarray,
+    *,
+    sigma_smooth: float,
+    margin: float,
+    escape_weight: float,
+) -> IpoptOutcome:
+    """Solve for the selected obstacles (arrays of length <= ``program.n_slots``).
+
+    Args:
+        program: Built solver.
+        prior: GP prior (for the sizes).
+        z0: Initial guess of the trajectory variables.
+        goal, centres, clearances: Start-relative subgoal, obstacle centres and clearances.
+        required: Distance every waypoint must keep (the clearance, or for escape obstacles the
+            start's own distance).
+        escape: Escape flag per obstacle.
+        reach_radii: Per-waypoint reach bound (N,); pairs that cannot come closer than the
+            required distance get infinite bounds.
+        sigma_smooth: Smoothness budget.
+        margin: Distance added to every required clearance (absorbs IPOPT's tolerance).
+        escape_weight: Weight of the escape push (lambda_max).
+    """
+    n = prior.n_waypoints - 1
+    m = len(centres)
+    slots = program.n_slots
+    centres_p = np.zeros((slots, 2))
+    centres_p[:m] = centres
+    clear_p = np.zeros(slots)
+    clear_p[:m] = clearances
+    esc_p = np.zeros(slots)
+    esc_p[:m] = np.where(escape, escape_weight, 0.0)
+    params = np.concatenate([goal, centres_p.ravel(), clear_p, esc_p])
+    need = np.zeros(slots)
+    need[:m] = np.where(escape, required * (1.0 - 1e-9), required + margin)
+    distance = np.hypot(centres_p[:, 0], centres_p[:, 1])
+    active = np.zeros(slots, dtype=bool)
+    active[:m] = True
+    lbg = [np.array([-np.inf])]
+    ubg = [np.array([sigma_smooth])]
+    x0 = np.zeros(program.n_var)
+    x0[: prior.n_var] = z0
+    lbx = np.full(program.n_var, -np.inf)
+    ubx = np.full(program.n_var, np.inf)
+    if not program.continuous:
+        # rows ordered obstacle-major: for j, for i in 2..N
+        reachable = (distance[:, None] - reach_radii[None, 1:]) < need[:, None] + 1e-9
+        on = active[:, None] & reachable
+        lbg.append(np.where(on, need[:, None] ** 2, -np.inf).ravel())
+        ubg.append(np.full(slots * n, np.inf))
+    else:
+        positions = np.zeros((n + 1, 2))
+        positions[1:] = z0[: 2 * n].reshape(n, 2)
+        seg_reach = np.maximum(reach_radii[:-1], reach_radii[1:])
+        seg_reach[0] = reach_radii[1]
+        on = active[:, None] & ((distance[:, None] - seg_reach[None, :]) < need[:, None] + 1e-9)
+        rows_l = np.empty((slots, n, 3))
+        rows_u = np.empty((slots, n, 3))
+        rows_l[..., 0] = rows_l[..., 1] = np.where(on, need[:, None], -np.inf)
+        rows_l[..., 2] = -np.inf
+        rows_u[..., 0] = rows_u[..., 1] = np.inf
+        rows_u[..., 2] = np.where(on, 1.0, np.inf)
+        lbg.append(rows_l.ravel())
+        ubg.append(rows_u.ravel())
+        # initial separating directions: from the centre to the segment's closest point
+        normals = np.zeros((slots, n, 2))
+        for j in range(m):
+            a = positions[:-1]
+            ab = positions[1:] - a
+            ao = centres[j] - a
+            t = np.clip(np.einsum("nk,nk->n", ao, ab) / (np.einsum("nk,nk->n", ab, ab) + 1e-12), 0, 1)
+            d = a + t[:, None] * ab - centres[j]
+            norm = np.hypot(d[:, 0], d[:, 1])
+            normals[j] = np.where(norm[:, None] > 1e-9, d / np.maximum(norm, 1e-9)[:, None], 0.0)
+        x0[prior.n_var :] = normals.ravel()
+        fixed = np.repeat(~on.ravel(), 2)
+        lbx[prior.n_var :][fixed] = 0.0
+        ubx[prior.n_var :][fixed] = 0.0
+        x0[prior.n_var :][fixed] = 0.0
+    solution = program.solver(
+        x0=x0, p=params, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg), lbx=lbx, ubx=ubx
+    )
+    stats = program.solver.stats()
+    z = np.asarray(solution["x"]).ravel()[: prior.n_var]
+    return IpoptOutcome(
+        z, str(stats.get("return_status", "unknown")), bool(stats.get("success", False)),
+        int(stats.get("iter_count", -1)),
+    )

@@ -1,0 +1,658 @@
+"""``SafeTrajectoryPlanner``: the safe trajectory optimiser of thesis §3.5.2 behind one interface.
+
+Three backends solve the same problem (Eqs. 3.3-3.7, SPEC §2.2): ``ipopt`` (hard pairwise
+constraints), ``lm`` (the thesis' penalty form, Eq. 3.8, with Levenberg-Marquardt; fixed or
+adaptive lambda, App. B.2.3) and ``scp`` (convex QPs on OSQP with tangent half-spaces). Every
+result, whatever the backend, is checked against every obstacle given; a plan that fails the check
+is replaced by the stationary trajectory (thesis §3.5.2: the stationary trajectory is feasible
+whenever the start is) and flagged as a fallback.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from solvers.planner.geometry import point_distances, segment_distances
+from solvers.planner.ipopt import IPOPT_OPTIONS, IpoptProgram, build_ipopt, solve_ipopt
+from solvers.planner.lm import LMWeights, build_lm_functions
+from solvers.planner.problem import (
+    BACKENDS,
+    PreparedProblem,
+    bucket_size,
+    build_gp_prior,
+    detour_guess,
+    join,
+    prepare,
+    split,
+)
+from solvers.planner.result import PlanResult
+from solvers.planner.scp import ScpProgram
+
+logger = logging.getLogger(__name__)
+
+#: Tolerance of the certificate (metres): a plan passes when every distance >= required - this.
+CERTIFICATE_TOLERANCE = 1e-9
+
+
+@dataclass
+class _BackendPlan:
+    z: np.ndarray
+    status: str
+    iterations: int
+    multiplier: float = float("nan")
+
+
+class _LMKernel:
+    """CasADi step/cost functions of one slot count, evaluated through zero-copy buffers."""
+
+    def __init__(self, step, cost, n_var: int, n_param: int) -> None:  # noqa: ANN001
+        self.step = step
+        self.cost = cost
+        self.n_var = n_var
+        self.z = np.zeros(n_var)
+        self.p = np.zeros(n_param)
+        self.f = np.zeros(1)
+        self.g = np.zeros(n_var)
+        self.h = np.zeros((n_var, n_var))
+        self.zc = np.zeros(n_var)
+        self.fc = np.zeros(1)
+        self._step_buf, self._step_eval = step.buffer()
+        for k, arr in enumerate((self.z, self.p)):
+            self._step_buf.set_arg(k, memoryview(arr))
+        for k, arr in enumerate((self.f, self.g, self.h)):
+            self._step_buf.set_res(k, memoryview(arr))
+        self._cost_buf, self._cost_eval = cost.buffer()
+        self._cost_buf.set_arg(0, memoryview(self.zc))
+        self._cost_buf.set_arg(1, memoryview(self.p))
+        self._cost_buf.set_res(0, memoryview(self.fc))
+        self._maps: dict[int, tuple] = {}
+
+    def evaluate(self, z: np.ndarray) -> None:
+        self.z[:] = z
+        self._step_eval()
+
+    def cost_at(self, z: np.ndarray) -> float:
+        self.zc[:] = z
+        self._cost_eval()
+        return float(self.fc[0])
+
+    def mapped(self, batch: int) -> tuple:
+        """Mapped step and cost functions for ``batch`` problems (built once per size)."""
+        if batch not in self._maps:
+            self._maps[batch] = (self.step.map(batch), self.cost.map(batch))
+        return self._maps[batch]
+
+
+def levenberg_marquardt(
+    kernel: _LMKernel,
+    z0: np.ndarray,
+    *,
+    iterations: int,
+    damping: float,
+) -> tuple[np.ndarray, float, int]:
+    """Monotone LM with Marquardt scaling on a kernel whose parameters are already set.
+
+    A step is accepted only when it lowers the penalty cost, so the cost never exceeds its value
+    at ``z0``; the damping is divided by 3 after an accepted step and multiplied by 4 after a
+    rejected one. Returns (z, cost, iterations).
+    """
+    z = z0.copy()
+    kernel.evaluate(z)
+    cost = float(kernel.f[0])
+    mu = damping
+    done = 0
+    for done in range(1, iterations + 1):
+        hess = kernel.h
+        diag = np.diag(hess)
+        damped = hess.copy()
+        damped.flat[:: kernel.n_var + 1] += mu * np.maximum(diag, 1e-9) + 1e-12
+        try:
+            factor = sla.cho_factor(damped, check_finite=False)
+        except sla.LinAlgError:
+            mu *= 10.0
+            continue
+        candidate = z - sla.cho_solve(factor, kernel.g, check_finite=False)
+        new_cost = kernel.cost_at(candidate)
+        if new_cost < cost:
+            improvement = cost - new_cost
+            z = candidate
+            kernel.evaluate(z)
+            cost = float(kernel.f[0])
+            mu = max(mu / 3.0, 1e-12)
+            if improvement <= 1e-12 * max(cost, 1.0) or cost <= 1e-24:
+                break
+        else:
+            mu *= 4.0
+            if mu > 1e12:
+                break
+    return z, cost, done
+
+
+class SafeTrajectoryPlanner:
+    """Plan N waypoints from a start towards a subgoal that keep eps' from every obstacle.
+
+    Args:
+        backend: ``"ipopt"``, ``"lm"`` or ``"scp"``.
+        n_waypoints: N, waypoints including the start (thesis: 30).
+        clearance: eps' (thesis: 0.5 m); an obstacle with radius r needs eps' + r.
+        max_obstacles: Most obstacles given to a backend (the nearest reachable ones are kept;
+            the certificate checks all).
+        dt: Time between waypoints of the GP prior (s); with ``Q_c = I`` only ``sigma_smooth dt^-3``
+            matters (the public code's horizon of 10 s over 29 intervals by default).
+        sigma_smooth: Smoothness budget ``h_smooth <= sigma_smooth`` (Eq. 3.3). The farthest
+            any waypoint can get is ``sqrt(sigma_smooth T^3 / 3)``, T = (N - 1) dt: 4 m by default.
+        smooth_weight: rho, a small weight on ``h_smooth`` added to the objective of every
+            backend: among plans that get equally close to the subgoal it picks the smoothest, and
+            it makes the problem strictly convex away from obstacles.
+        continuous: Also keep the clearance along every segment between waypoints.
+        goal_tolerance: ``reached_subgoal`` is ``||x_N - subgoal|| < goal_tolerance`` (m).
+        feasibility_margin: Extra clearance (m) asked of IPOPT and SCP, which solve to a
+            tolerance; the certificate checks the exact clearance.
+        lm_iterations: LM iterations per lambda (thesis: 10 in training).
+        lm_lambda: The multiplier lambda of Eq. 3.8 (fixed mode; the start of adaptive mode).
+        lm_adaptive: Double lambda until the plan passes the certificate, up to ``lm_lambda_max``
+            (App. B.2.3; the evaluation setting).
+        lm_lambda_max: Largest lambda, also used in escape mode (thesis: 1024).
+        lm_obstacle_weight: Base weight of the obstacle hinge (times lambda).
+        lm_budget_weight: Base weight of the smoothness-budget hinge (times lambda).
+        lm_margin: Extra clearance (m) in the LM hinge, so penalty solutions usually pass the
+            exact certificate (the public code adds 0.01 m).
+        lm_damping: Initial Marquardt damping.
+        ipopt_max_iter: IPOPT iteration cap of the cold (stationary-start) attempt.
+        ipopt_first_max_iter: Iteration cap of the first attempt from the guess / previous plan.
+        ipopt_options: IPOPT options merged over :data:`IPOPT_OPTIONS`.
+        scp_max_iterations: QP solves at most.
+        scp_trust_region: Half-width of the SCP trust-region box.
+        escape_weight: Weight of the outward push in IPOPT's escape mode (lambda_max's role).
+    """
+
+    def __init__(
+        self,
+        backend: str = "ipopt",
+        n_waypoints: int = 30,
+        clearance: float = 0.5,
+        max_obstacles: int = 16,
+        dt: float = 10.0 / 29.0,
+        sigma_smooth: float = 0.048,
+        smooth_weight: float = 0.01,
+        continuous: bool = False,
+        goal_tolerance: float = 0.05,
+        feasibility_margin: float = 1e-5,
+        lm_iterations: int = 10,
+        lm_lambda: float = 1.0,
+        lm_adaptive: bool = False,
+        lm_lambda_max: float = 1024.0,
+        lm_obstacle_weight: float = 1000.0,
+        lm_budget_weight: float = 100.0,
+        lm_margin: float = 0.02,
+        lm_damping: float = 1e-4,
+        ipopt_max_iter: int = 200,
+        ipopt_first_max_iter: int = 30,
+        ipopt_options: dict[str, object] | None = None,
+        scp_max_iterations: int = 30,
+        scp_trust_region: float = 1.0,
+        escape_weight: float = 1024.0,
+    ) -> None:
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+        positive = {
+            "dt": dt,
+            "sigma_smooth": sigma_smooth,
+            "lm_lambda": lm_lambda,
+            "lm_lambda_max": lm_lambda_max,
+            "lm_obstacle_weight": lm_obstacle_weight,
+            "lm_budget_weight": lm_budget_weight,
+            "lm_damping": lm_damping,
+            "scp_trust_region": scp_trust_region,
+            "goal_tolerance": goal_tolerance,
+        }
+        for name, value in positive.items():
+            if not np.isfinite(value) or value <= 0:
+                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        non_negative = {
+            "clearance": clearance,
+            "smooth_weight": smooth_weight,
+            "feasibility_margin": feasibility_margin,
+            "lm_margin": lm_margin,
+            "escape_weight": escape_weight,
+        }
+        for name, value in non_negative.items():
+            if not np.isfinite(value) or value < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        counts = {
+            "n_waypoints": (n_waypoints, 3),
+            "max_obstacles": (max_obstacles, 1),
+            "lm_iterations": (lm_iterations, 1),
+            "ipopt_max_iter": (ipopt_max_iter, 1),
+            "ipopt_first_max_iter": (ipopt_first_max_iter, 0),
+            "scp_max_iterations": (scp_max_iterations, 1),
+        }
+        for name, (value, least) in counts.items():
+            if int(value) != value or value < least:
+                raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+        if lm_lambda > lm_lambda_max:
+            raise ValueError(f"lm_lambda ({lm_lambda}) must be <= lm_lambda_max ({lm_lambda_max})")
+        self.backend = backend
+        self.n_waypoints = int(n_waypoints)
+        self.clearance = float(clearance)
+        self.max_obstacles = int(max_obstacles)
+        self.dt = float(dt)
+        self.sigma_smooth = float(sigma_smooth)
+        self.smooth_weight = float(smooth_weight)
+        self.continuous = bool(continuous)
+        self.goal_tolerance = float(goal_tolerance)
+        self.feasibility_margin = float(feasibility_margin)
+        self.lm_iterations = int(lm_iterations)
+        self.lm_lambda = float(lm_lambda)
+        self.lm_adaptive = bool(lm_adaptive)
+        self.lm_lambda_max = float(lm_lambda_max)
+        self.lm_margin = float(lm_margin)
+        self.lm_damping = float(lm_damping)
+        self.ipopt_max_iter = int(ipopt_max_iter)
+        self.ipopt_first_max_iter = int(ipopt_first_max_iter)
+        self.ipopt_options = dict(IPOPT_OPTIONS, **(ipopt_options or {}))
+        self.scp_max_iterations = int(scp_max_iterations)
+        self.scp_trust_region = float(scp_trust_region)
+        self.escape_weight = float(escape_weight)
+        self.prior = build_gp_prior(self.n_waypoints, self.dt)
+        self.reach_radii = self.prior.reach_radii(self.sigma_smooth)
+        #: Farthest any waypoint of an admissible plan can get from the start (m).
+        self.reach = float(self.reach_radii[-1])
+        self._lm_weights = LMWeights(
+            smooth_regulariser=self.smooth_weight,
+            smooth_budget=float(lm_budget_weight),
+            obstacle=float(lm_obstacle_weight),
+            sigma_smooth=self.sigma_smooth,
+        )
+        self._lm_kernels: dict[int, _LMKernel] = {}
+        self._ipopt: dict[tuple[int, str], IpoptProgram] = {}
+        self._scp: dict[int, ScpProgram] = {}
+        self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ public API
+    def plan(
+        self,
+        start: Sequence[float] | np.ndarray,
+        subgoal: Sequence[float] | np.ndarray,
+        obstacles: Sequence[Sequence[float]] | np.ndarray | None = None,
+        warm_start: bool = True,
+    ) -> PlanResult:
+        """Plan from ``start`` towards ``subgoal`` around ``obstacles``.
+
+        Args:
+            start: Robot root position (2,).
+            subgoal: Target of the last waypoint (2,).
+            obstacles: (m, 2) centres or (m, 3) centres with radii; None or empty for none.
+            warm_start: Reuse the previous plan as the first initial guess when the subgoal
+                moved less than 0.25 m since the previous call.
+
+        Returns:
+            The certified plan (see :class:`PlanResult`).
+
+        Raises:
+            ValueError: Non-finite or wrongly shaped inputs, or negative radii.
+        """
+        tic = time.perf_counter()
+        prep = self._prepare(start, subgoal, obstacles)
+        warm = self._warm_guess(prep) if warm_start else None
+        try:
+            if self.backend == "lm":
+                plan = self._solve_lm(prep, warm)
+            elif self.backend == "ipopt":
+                plan = self._solve_ipopt(prep, warm)
+            else:
+                plan = self._solve_scp(prep, warm)
+        except (RuntimeError, np.linalg.LinAlgError) as error:  # solver crash -> fallback
+            logger.warning("planner backend %s failed: %s", self.backend, error)
+            plan = _BackendPlan(np.zeros(self.prior.n_var), f"error: {error}", 0)
+        result = self._certify(prep, plan, time.perf_counter() - tic)
+        self._previous = (prep.start.copy(), prep.start + prep.goal, result.waypoints.copy())
+        return result
+
+    def plan_batch(
+        self,
+        starts: Sequence[Sequence[float]] | np.ndarray,
+        subgoals: Sequence[Sequence[float]] | np.ndarray,
+        obstacles_list: Sequence[object],
+    ) -> list[PlanResult]:
+        """Plan several independent problems (e.g. one per vectorised environment).
+
+        With the ``lm`` backend the CasADi residual/Jacobian evaluations of all problems run in
+        one mapped call per iteration; ``ipopt`` and ``scp`` solve one after the other with
+        the cached solvers. No warm start between problems.
+        """
+        starts_arr = np.asarray(starts, dtype=float)
+        subgoals_arr = np.asarray(subgoals, dtype=float)
+        if starts_arr.ndim != 2 or starts_arr.shape[1] != 2:
+            raise ValueError(f"starts must have shape (B, 2), got {starts_arr.shape}")
+        if subgoals_arr.shape != starts_arr.shape:
+            raise ValueError(
+                f"subgoals must have the same shape as starts {starts_arr.shape}, "
+                f"got {subgoals_arr.shape}"
+            )
+        if len(obstacles_list) != len(starts_arr):
+            raise ValueError(
+                f"obstacles_list must have one entry per start ({len(starts_arr)}), "
+                f"got {len(obstacles_list)}"
+            )
+        if self.backend != "lm" or len(starts_arr) <= 1:
+            return [
+                self.plan(s, g, o, warm_start=False)
+                for s, g, o in zip(starts_arr, subgoals_arr, obstacles_list, strict=True)
+            ]
+        return self._plan_batch_lm(starts_arr, subgoals_arr, obstacles_list)
+
+    # ------------------------------------------------------------------ preparation
+    def _prepare(self, start: object, subgoal: object, obstacles: object) -> PreparedProblem:
+        reach = self.reach
+        if self.backend == "lm":
+            # The penalty budget is soft: allow the plan to overrun it (the bound is used only
+            # to drop far obstacles; the certificate still checks all of them).
+            reach = float(np.sqrt(4.0 * self.sigma_smooth / self.prior.reach_coef[-1]))
+        return prepare(
+            start,
+            subgoal,
+            obstacles,
+            clearance=self.clearance,
+            reach=reach + self.feasibility_margin + self.lm_margin,
+            max_obstacles=self.max_obstacles,
+        )
+
+    def _warm_guess(self, prep: PreparedProblem) -> np.ndarray | None:
+        if self._previous is None:
+            return None
+        _, previous_goal, waypoints = self._previous
+        if np.hypot(*(prep.start + prep.goal - previous_goal)) > 0.25:
+            return None
+        positions = waypoints - prep.start
+        positions[0] = 0.0
+        velocities = np.zeros_like(positions)
+        velocities[1:] = np.diff(positions, axis=0) / self.dt
+        return join(positions, velocities)
+
+    def _guess(self, prep: PreparedProblem) -> np.ndarray:
+        sel = prep.selected
+        return detour_guess(
+            self.prior, prep.goal, prep.centres[sel], prep.clearances[sel], reach=self.reach
+        )
+
+    # ------------------------------------------------------------------ LM
+    def _lm_kernel(self, n_slots: int) -> _LMKernel:
+        if n_slots not in self._lm_kernels:
+            step, cost = build_lm_functions(
+                self.prior, self._lm_weights, n_slots, continuous=self.continuous
+            )
+            self._lm_kernels[n_slots] = _LMKernel(step, cost, self.prior.n_var, 3 + 3 * n_slots)
+        return self._lm_kernels[n_slots]
+
+    def _lm_params(self, prep: PreparedProblem, n_slots: int, lam: float) -> np.ndarray:
+        sel = prep.selected
+        m = len(sel)
+        centres = np.zeros((n_slots, 2))
+        centres[:m] = prep.centres[sel]
+        radii = np.zeros(n_slots)
+        radii[:m] = prep.clearances[sel] + self.lm_margin
+        return np.concatenate([prep.goal, centres.ravel(), radii, [lam]])
+
+    def _solve_lm(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
+        kernel = self._lm_kernel(bucket_size(len(prep.selected), self.max_obstacles))
+        n_slots = (len(kernel.p) - 3) // 3
+        lam = self.lm_lambda_max if prep.escape_mode else self.lm_lambda
+        z = self._guess(prep)
+        kernel.p[:] = self._lm_params(prep, n_slots, lam)
+        if warm is not None and kernel.cost_at(warm) < kernel.cost_at(z):
+            z = warm
+        total = 0
+        while True:
+            kernel.p[:] = self._lm_params(prep, n_slots, lam)
+            z, _, done = levenberg_marquardt(
+                kernel, z, iterations=self.lm_iterations, damping=self.lm_damping
+            )
+            total += done
+            if not self.lm_adaptive or lam >= self.lm_lambda_max or self._passes(prep, z):
+                break
+            lam = min(2.0 * lam, self.lm_lambda_max)
+        return _BackendPlan(z, "solved", total, lam)
+
+    def _plan_batch_lm(
+        self, starts: np.ndarray, subgoals: np.ndarray, obstacles_list: Sequence[object]
+    ) -> list[PlanResult]:
+        tic = time.perf_counter()
+        preps = [self._prepare(s, g, o) for s, g, o in zip(starts, subgoals, obstacles_list,
+                                                           strict=True)]
+        batch = len(preps)
+        n_slots = max(bucket_size(len(p.selected), self.max_obstacles) for p in preps)
+        kernel = self._lm_kernel(n_slots)
+        step_map, cost_map = kernel.mapped(batch)
+        nv = self.prior.n_var
+        lams = np.array([self.lm_lambda_max if p.escape_mode else self.lm_lambda for p in preps])
+        zs = np.stack([self._guess(p) for p in preps], axis=1)  # (nv, B)
+        totals = np.zeros(batch, dtype=int)
+        active = np.ones(batch, dtype=bool)
+        while active.any():
+            params = np.stack(
+                [self._lm_params(p, n_slots, lam) for p, lam in zip(preps, lams, strict=True)],
+                axis=1,
+            )
+            mu = np.full(batch, self.lm_damping)
+            f, g, h = step_map(zs, params)
+            f = np.asarray(f).ravel()
+            g = np.asarray(g)
+            h = np.asarray(h).reshape(nv, batch, nv)
+            running = active.copy()
+            for _ in range(self.lm_iterations):
+                if not running.any():
+                    break
+                candidates = zs.copy()
+                for b in np.flatnonzero(running):
+                    hb = h[:, b, :].copy()
+                    diag = np.diag(hb).copy()
+                    hb.flat[:: nv + 1] += mu[b] * np.maximum(diag, 1e-9) + 1e-12
+                    try:
+                        factor = sla.cho_factor(hb, check_finite=False)
+                    except sla.LinAlgError:
+                        mu[b] *= 10.0
+                        continue
+                    candidates[:, b] -= sla.cho_solve(factor, g[:, b], check_finite=False)
+                new_f = np.asarray(cost_map(candidates, params)).ravel()
+                accept = running & (new_f < f)
+                totals[running] += 1
+                zs[:, accept] = candidates[:, accept]
+                mu[accept] = np.maximum(mu[accept] / 3.0, 1e-12)
+                mu[running & ~accept] *= 4.0
+                converged = accept & (f - new_f <= 1e-12 * np.maximum(new_f, 1.0))
+                running &= ~converged & (mu <= 1e12)
+                if accept.any():
+                    f2, g2, h2 = step_map(zs, params)
+                    f = np.asarray(f2).ravel()
+                    g = np.asarray(g2)
+                    h = np.asarray(h2).reshape(nv, batch, nv)
+            if not self.lm_adaptive:
+                break
+            for b in np.flatnonzero(active):
+                if lams[b] >= self.lm_lambda_max or self._passes(preps[b], zs[:, b]):
+                    active[b] = False
+                else:
+                    lams[b] = min(2.0 * lams[b], self.lm_lambda_max)
+        elapsed = (time.perf_counter() - tic) / batch
+        return [
+            self._certify(p, _BackendPlan(zs[:, b].copy(), "solved", int(totals[b]), lams[b]),
+                          elapsed)
+            for b, p in enumerate(preps)
+        ]
+
+    # ------------------------------------------------------------------ IPOPT
+    def _ipopt_program(self, n_slots: int, kind: str) -> IpoptProgram:
+        key = (n_slots, kind)
+        if key not in self._ipopt:
+            options = dict(self.ipopt_options)
+            options["max_iter"] = self.ipopt_first_max_iter if kind == "first" else self.ipopt_max_iter
+            self._ipopt[key] = build_ipopt(
+                self.prior,
+                n_slots,
+                smooth_regulariser=self.smooth_weight,
+                continuous=self.continuous,
+                ipopt_options=options,
+            )
+        return self._ipopt[key]
+
+    def _solve_ipopt(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
+        sel = prep.selected
+        n_slots = bucket_size(len(sel), self.max_obstacles)
+        args = (
+            prep.goal,
+            prep.centres[sel],
+            prep.clearances[sel],
+            prep.required[sel],
+            prep.escape[sel],
+            self.reach_radii,
+        )
+        kwargs = {
+            "sigma_smooth": self.sigma_smooth,
+            "margin": self.feasibility_margin,
+            "escape_weight": self.escape_weight,
+        }
+        iterations = 0
+        if self.ipopt_first_max_iter > 0 and not prep.escape_mode:
+            z0 = warm if warm is not None else self._guess(prep)
+            first = solve_ipopt(self._ipopt_program(n_slots, "first"), self.prior, z0, *args,
+                                **kwargs)
+            iterations += max(first.iterations, 0)
+            if first.success and self._passes(prep, first.z):
+                return _BackendPlan(first.z, _ipopt_status(first.status), iterations)
+        # cold attempt from the stationary trajectory, which is feasible
+        second = solve_ipopt(self._ipopt_program(n_slots, "cold"), self.prior,
+                             np.zeros(self.prior.n_var), *args, **kwargs)
+        iterations += max(second.iterations, 0)
+        return _BackendPlan(second.z, _ipopt_status(second.status), iterations)
+
+    # ------------------------------------------------------------------ SCP
+    def _scp_program(self, n_slots: int) -> ScpProgram:
+        if n_slots not in self._scp:
+            self._scp[n_slots] = ScpProgram(
+                self.prior, n_slots, smooth_regulariser=self.smooth_weight,
+                continuous=self.continuous,
+            )
+        return self._scp[n_slots]
+
+    def _solve_scp(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
+        sel = prep.selected
+        goal = prep.goal
+        need = np.where(prep.escape[sel], prep.required[sel] * (1.0 - 1e-9),
+                        prep.required[sel] + self.feasibility_margin)
+        if prep.escape_mode:
+            goal = self._escape_target(prep)
+        z0 = np.zeros(self.prior.n_var)
+        guess = self._guess(prep)
+        candidates = [c for c in (warm, guess) if c is not None]
+        for candidate in candidates:
+            h = self.prior.smoothness(candidate)
+            if h > self.sigma_smooth:
+                candidate = candidate * np.sqrt(self.sigma_smooth / h) * (1.0 - 1e-9)
+            if self._clear_of(prep, candidate, sel, need):
+                z0 = candidate
+                break
+        if len(sel) == 0:
+            program = self._scp_program(0)
+        else:
+            program = self._scp_program(bucket_size(len(sel), self.max_obstacles))
+        outcome = program.solve(
+            z0,
+            goal,
+            prep.centres[sel],
+            need,
+            sigma_smooth=self.sigma_smooth,
+            smooth_regulariser=self.smooth_weight,
+            trust_region=self.scp_trust_region,
+            max_iterations=self.scp_max_iterations,
+        )
+        return _BackendPlan(outcome.z, outcome.status, outcome.iterations)
+
+    def _escape_target(self, prep: PreparedProblem) -> np.ndarray:
+        """A point outside the violated clearances, straight out from their centres."""
+        outward = np.zeros(2)
+        for j in np.flatnonzero(prep.escape):
+            direction = -prep.centres[j]
+            norm = float(np.hypot(*direction))
+            direction = np.array([1.0, 0.0]) if norm < 1e-12 else direction / norm
+            outward += direction * (prep.clearances[j] - prep.start_distances[j] + 0.1)
+        return outward
+
+    # ------------------------------------------------------------------ certificate
+    def _clear_of(
+        self, prep: PreparedProblem, z: np.ndarray, sel: np.ndarray, need: np.ndarray
+    ) -> bool:
+        if len(sel) == 0:
+            return True
+        positions, _ = split(z, self.n_waypoints)
+        centres = prep.centres[sel]
+        distances = (segment_distances(positions, centres) if self.continuous
+                     else point_distances(positions[1:], centres))
+        return bool(np.all(distances >= need[None, :]))
+
+    def _passes(self, prep: PreparedProblem, z: np.ndarray) -> bool:
+        """The certificate: every waypoint (segment) keeps the required distance to ALL obstacles."""
+        if not np.all(np.isfinite(z)):
+            return False
+        if len(prep.centres) == 0:
+            return True
+        positions, _ = split(z, self.n_waypoints)
+        distances = (segment_distances(positions, prep.centres) if self.continuous
+                     else point_distances(positions, prep.centres))
+        return bool(np.all(distances >= prep.required[None, :] - CERTIFICATE_TOLERANCE))
+
+    def _certify(self, prep: PreparedProblem, plan: _BackendPlan, elapsed: float) -> PlanResult:
+        z = plan.z
+        status = plan.status
+        fallback = False
+        if not self._passes(prep, z):
+            z = np.zeros(self.prior.n_var)
+            fallback = True
+            status = f"fallback: {plan.status}: plan failed the clearance certificate"
+        positions, velocities = split(z, self.n_waypoints)
+        radii = prep.clearances - self.clearance
+        if len(prep.centres):
+            point = point_distances(positions, prep.centres)
+            segment = segment_distances(positions, prep.centres)
+            min_clear = float(np.min(point - radii[None, :]))
+            min_cont = float(np.min(segment - radii[None, :]))
+            feasible = bool(np.all(segment >= prep.clearances[None, :] - CERTIFICATE_TOLERANCE)
+                            if self.continuous
+                            else np.all(point >= prep.clearances[None, :] - CERTIFICATE_TOLERANCE))
+        else:
+            min_clear = min_cont = float("inf")
+            feasible = True
+        gap = positions[-1] - prep.goal
+        objective = float(gap @ gap)
+        return PlanResult(
+            waypoints=positions + prep.start,
+            velocities=velocities,
+            feasible=feasible,
+            status=status,
+            fallback=fallback,
+            escape_mode=prep.escape_mode,
+            objective=objective,
+            min_clearance=min_clear,
+            min_clearance_continuous=min_cont,
+            iterations=int(plan.iterations),
+            solve_time_s=float(elapsed),
+            backend=self.backend,
+            reached_subgoal=bool(np.sqrt(objective) < self.goal_tolerance),
+            multiplier=float(plan.multiplier),
+            n_considered=len(prep.selected),
+        )
+
+
+def _ipopt_status(status: str) -> str:
+    return {
+        "Solve_Succeeded": "solved",
+        "Solved_To_Acceptable_Level": "solved_acceptable",
+        "Maximum_Iterations_Exceeded": "max_iter",
+        "Maximum_WallTime_Exceeded": "max_wall_time",
+    }.get(status, status)

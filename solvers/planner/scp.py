@@ -1,0 +1,242 @@
+"""Sequential convex programming backend on OSQP (the TrajOpt idea; SPEC §2.2).
+
+Each iteration solves the convex QP
+
+    min ||x_N - g||^2 + rho ||W z||^2
+    s.t. n_ij^T (x_i - o_j) >= c_j + delta          (tangent half-space of every active pair)
+         grad h(z_k)^T (z - z_k) <= sigma - h(z_k)   (linearised smoothness budget)
+         |z - z_k| <= trust                          (trust region)
+
+where ``n_ij`` is the unit vector from obstacle j to waypoint i at the current iterate ``z_k`` (or,
+with the continuous option, to the closest point of segment ``[x_i, x_{i+1}]``, and the half-space
+is imposed on both of its ends). A half-space ``n^T (x - o) >= c`` with unit ``n`` lies outside the
+disc of radius c, and the current iterate satisfies it, so the constraints are a conservative
+inner approximation: starting from a feasible trajectory (the stationary one always is), every
+QP solution keeps every waypoint (every segment) clear. The budget is convex, so the exact ``h`` on
+the segment from ``z_k`` to the QP solution is a quadratic in the step length and the step is cut
+back in closed form to keep ``h <= sigma``; the segment stays inside the half-spaces. The solver
+is therefore safe whenever it is stopped. The objective is convex quadratic with a constant
+Hessian (the GP prior stays quadratic), which avoids the indefinite Lagrangian Hessian that made
+CasADi's ``sqpmethod`` fail (research note §1.6). OSQP is set up once per compiled slot count and
+updated and warm-started in place.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from solvers.planner.problem import GPPrior
+
+#: OSQP settings: tight tolerances (the QP solution is re-checked exactly), no printing.
+OSQP_SETTINGS: dict[str, object] = {
+    "verbose": False,
+    "eps_abs": 1e-7,
+    "eps_rel": 1e-7,
+    "max_iter": 4000,
+    "polishing": False,
+    "warm_starting": True,
+    "adaptive_rho": True,
+}
+
+
+@dataclass
+class ScpOutcome:
+    """Raw SCP result (start-relative ``z``)."""
+
+    z: np.ndarray
+    status: str
+    iterations: int
+    converged: bool
+
+
+class ScpProgram:
+    """One OSQP problem with a fixed sparsity pattern for ``n_slots`` obstacle slots."""
+
+    def __init__(
+        self,
+        prior: GPPrior,
+        n_slots: int,
+        *,
+        smooth_regulariser: float,
+        continuous: bool,
+        settings: dict[str, object] | None = None,
+    ) -> None:
+        self.prior = prior
+        self.n_slots = n_slots
+        self.continuous = continuous
+        n = prior.n_waypoints - 1
+        self.n = n
+        nv = prior.n_var
+        goal_select = np.zeros((2, nv))
+        goal_select[0, 2 * (n - 1)] = goal_select[1, 2 * (n - 1) + 1] = 1.0
+        self.goal_select = goal_select
+        hessian = 2.0 * (goal_select.T @ goal_select + smooth_regulariser * prior.hessian)
+        self.P = sp.triu(sp.csc_matrix(hessian), format="csc")
+        # Constraint rows: trust region (nv), budget (1), obstacle rows.
+        rows: list[int] = list(range(nv))
+        cols: list[int] = list(range(nv))
+        rows += [nv] * nv
+        cols += list(range(nv))
+        self.n_obstacle_rows = n_slots * n * (2 if continuous else 1)
+        base = nv + 1
+        for j in range(n_slots):
+            for i in range(n):
+                if continuous:
+                    # segment i joins waypoint i (0 = pinned start) and waypoint i + 1
+                    r_a = base + (j * n + i) * 2
+                    if i > 0:
+                        rows += [r_a, r_a]
+                        cols += [2 * (i - 1), 2 * (i - 1) + 1]
+                    rows += [r_a + 1, r_a + 1]
+                    cols += [2 * i, 2 * i + 1]
+                else:
+                    r = base + j * n + i
+                    rows += [r, r]
+                    cols += [2 * i, 2 * i + 1]
+        self.n_rows = base + self.n_obstacle_rows
+        order = np.arange(1, len(rows) + 1, dtype=float)
+        pattern = sp.csc_matrix((order, (rows, cols)), shape=(self.n_rows, nv))
+        pattern.sort_indices()
+        self.perm = pattern.data.astype(int) - 1  # data[k] = values[perm[k]]
+        self.values = np.ones(len(rows))
+        self.values[nv : 2 * nv] = 0.0
+        self.A = sp.csc_matrix((self.values[self.perm], pattern.indices, pattern.indptr),
+                               shape=pattern.shape)
+        self.lower = np.full(self.n_rows, -np.inf)
+        self.upper = np.full(self.n_rows, np.inf)
+        self.solver = osqp.OSQP()
+        self.solver.setup(
+            self.P, np.zeros(nv), self.A, self.lower, self.upper, **(settings or OSQP_SETTINGS)
+        )
+
+    def _normals(
+        self, positions: np.ndarray, centres: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Unit normals (m, n, 2) and current distances (m, n) per (obstacle, waypoint/segment)."""
+        if self.continuous:
+            a = positions[None, :-1, :]
+            ab = (positions[1:] - positions[:-1])[None, :, :]
+            ao = centres[:, None, :] - a
+            length = np.einsum("mnk,mnk->mn", ab, ab)
+            t = np.clip(np.einsum("mnk,mnk->mn", ao, ab) / np.maximum(length, 1e-18), 0.0, 1.0)
+            diff = a + t[..., None] * ab - centres[:, None, :]
+        else:
+            diff = positions[None, 1:, :] - centres[:, None, :]
+        dist = np.sqrt(np.einsum("mnk,mnk->mn", diff, diff))
+        normals = diff / np.maximum(dist, 1e-12)[..., None]
+        return normals, dist
+
+    def solve(
+        self,
+        z0: np.ndarray,
+        goal: np.ndarray,
+        centres: np.ndarray,
+        need: np.ndarray,
+        *,
+        sigma_smooth: float,
+        smooth_regulariser: float,
+        trust_region: float,
+        max_iterations: int,
+        tolerance: float = 1e-7,
+    ) -> ScpOutcome:
+        """Run SCP from the feasible ``z0`` (every pair keeps ``need``; ``h(z0) <= sigma``).
+
+        Args:
+            z0: Feasible initial trajectory variables.
+            goal: Start-relative target.
+            centres: Selected obstacle centres (m <= n_slots, 2), start-relative.
+            need: Distance each waypoint (segment) must keep from each selected obstacle.
+            sigma_smooth: Smoothness budget.
+            smooth_regulariser: rho (must match the value the program was built with).
+            trust_region: Half-width of the box trust region on every variable.
+            max_iterations: QP solves at most.
+            tolerance: Stop when the step's infinity norm falls below this.
+        """
+        prior = self.prior
+        nv = prior.n_var
+        n = self.n
+        m = len(centres)
+        W = prior.W
+        q = -2.0 * (self.goal_select.T @ goal)
+        self.solver.update(q=q)
+        z = z0.copy()
+        centres_p = np.zeros((self.n_slots, 2))
+        centres_p[:m] = centres
+
+        def objective(vec: np.ndarray) -> float:
+            r = W @ vec
+            end = vec[2 * (n - 1) : 2 * n] - goal
+            return float(end @ end + smooth_regulariser * (r @ r))
+
+        current = objective(z)
+        status = "max_iter"
+        converged = False
+        iterations = 0
+        lower = self.lower
+        upper = self.upper
+        values = self.values
+        base = nv + 1
+        for iterations in range(1, max_iterations + 1):
+            positions = np.zeros((n + 1, 2))
+            positions[1:] = z[: 2 * n].reshape(n, 2)
+            residual = W @ z
+            h = float(residual @ residual)
+            grad_h = 2.0 * (W.T @ residual)
+            lower[:nv] = z - trust_region
+            upper[:nv] = z + trust_region
+            values[nv : 2 * nv] = grad_h
+            upper[nv] = sigma_smooth - h + grad_h @ z
+            if m:
+                normals, _ = self._normals(positions, centres)
+                rhs = need[:, None] + np.einsum("mnk,mk->mn", normals, centres)
+                obstacle_values = np.zeros((self.n_slots, n, 2 if self.continuous else 1, 2))
+                obstacle_lower = np.full((self.n_slots, n, 2 if self.continuous else 1), -np.inf)
+                if self.continuous:
+                    obstacle_values[:m, :, 0, :] = normals
+                    obstacle_values[:m, :, 1, :] = normals
+                    obstacle_lower[:m, :, 0] = rhs
+                    obstacle_lower[:m, :, 1] = rhs
+                    obstacle_lower[:, 0, 0] = -np.inf  # the pinned start is not a variable
+                    flat = obstacle_values.reshape(self.n_slots, n, 2, 2)
+                    # the pattern has no entries for the start row of segment 0
+                    keep = np.ones((self.n_slots, n, 2), dtype=bool)
+                    keep[:, 0, 0] = False
+                    obstacle_flat = flat[keep].ravel()
+                else:
+                    obstacle_values[:m, :, 0, :] = normals
+                    obstacle_lower[:m, :, 0] = rhs
+                    obstacle_flat = obstacle_values.ravel()
+                values[2 * nv :] = obstacle_flat
+                lower[base:] = obstacle_lower.ravel()
+            self.solver.update(Ax=values[self.perm], l=lower, u=upper)
+            result = self.solver.solve()
+            if result.info.status_val not in (1, 2):  # solved, solved inaccurate
+                status = f"qp_{result.info.status}"
+                break
+            step = result.x - z
+            # exact budget: h(z + t step) = a t^2 + b t + h
+            w_step = W @ step
+            a = float(w_step @ w_step)
+            b = 2.0 * float(residual @ w_step)
+            t = 1.0
+            if a * t * t + b * t + h > sigma_smooth and a > 0.0:
+                disc = b * b - 4.0 * a * (h - sigma_smooth)
+                t = max(0.0, min(1.0, (-b + np.sqrt(max(disc, 0.0))) / (2.0 * a)))
+            candidate = z + t * step
+            value = objective(candidate)
+            if value > current + 1e-12:
+                status = "no_descent"
+                converged = True
+                break
+            z = candidate
+            improvement = current - value
+            current = value
+            if np.max(np.abs(t * step)) < tolerance or improvement < 1e-12:
+                status = "converged"
+                converged = True
+                break
+        return ScpOutcome(z, status, iterations, converged)
