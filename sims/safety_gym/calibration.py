@@ -7,7 +7,6 @@ env steps. :func:`calibration_table` returns rows ``(quantity, action, ours, spe
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from sims.safety_gym.env import SafetyGymEnv

@@ -108,7 +108,6 @@ def level_spec(task: str, level: int, robot: str = "point") -> LevelSpec:
     return LevelSpec(extents=extents, objects=objects, lidar_order=lidar)
 
 
-
 def validate(robot: str, task: str, level: int) -> None:
     """Raise ``ValueError`` naming the offending value and the valid options."""
     if robot not in ROBOTS:

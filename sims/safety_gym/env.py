@@ -8,9 +8,10 @@ numpy calls on 2- to 16-element arrays cost more than the arithmetic they do.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
@@ -32,17 +33,27 @@ _BOX_FRICTION_RADIUS = 0.2  # effective lever arm of the box's floor friction to
 _VASE_FRICTION_RADIUS = 0.077  # mean distance from the centre over a 0.2 m square
 
 
-def _add_floor_friction(
-    space: pymunk.Space, body: pymunk.Body, mass: float, lever: float
-) -> None:
-    """Top-down Coulomb floor friction: velocity-only joints to the static body, force μmg."""
-    pivot = pymunk.PivotJoint(space.static_body, body, (0.0, 0.0), (0.0, 0.0))
-    pivot.max_bias = 0.0
-    pivot.max_force = cfg.FLOOR_FRICTION * mass * cfg.GRAVITY
-    gear = pymunk.GearJoint(space.static_body, body, 0.0, 1.0)
-    gear.max_bias = 0.0
-    gear.max_force = cfg.FLOOR_FRICTION * mass * cfg.GRAVITY * lever
-    space.add(pivot, gear)
+def _floor_friction(body: pymunk.Body, h: float, angular_lever: float) -> None:
+    """Top-down Coulomb floor friction (μ = 1) on a free body for one substep of length ``h``.
+
+    The speed drops by μ g h (to zero, never reversing) and the spin by μ m g r h / I, with ``r``
+    the friction torque's lever arm. Done in Python rather than with pymunk friction joints:
+    joints keep accumulated impulses that pickling drops, so a deepcopy would not continue
+    identically.
+    """
+    vx, vy = body.velocity
+    w = body.angular_velocity
+    if vx == 0.0 and vy == 0.0 and w == 0.0:
+        return
+    dv = cfg.FLOOR_FRICTION * cfg.GRAVITY * h
+    speed = math.sqrt(vx * vx + vy * vy)
+    if speed <= dv:
+        body.velocity = (0.0, 0.0)
+    else:
+        k = 1.0 - dv / speed
+        body.velocity = (vx * k, vy * k)
+    dw = dv * body.mass * angular_lever / body.moment
+    body.angular_velocity = 0.0 if abs(w) <= dw else w - math.copysign(dw, w)
 
 
 def _square(body: pymunk.Body, cx: float, cy: float, half: float) -> pymunk.Poly:
@@ -84,7 +95,9 @@ class SafetyGymEnv(gymnasium.Env):
     ``cost_sum`` (= ``cost``), plus ``goal_met``.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+    #: Chipmunk solver iterations; they only cost time while contacts exist.
+    solver_iterations: ClassVar[int] = 60
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
 
     def __init__(
         self,
@@ -156,6 +169,9 @@ class SafetyGymEnv(gymnasium.Env):
         rng = self.np_random
         space = pymunk.Space()
         space.collision_slop = 0.001
+        # the push box is 40-2000x lighter than the robots: more solver iterations keep a box
+        # squeezed between a robot and a pillar from being overrun (tests/test_sims_physics.py)
+        space.iterations = self.solver_iterations
         self.space = space
         ax, ay = layout["agent"][0]
         self.body = self.robot.build(space, ax, ay, agent_yaw)
@@ -182,7 +198,6 @@ class SafetyGymEnv(gymnasium.Env):
             shape = _square(body, 0.0, 0.0, cfg.VASE_HALF)
             shape.collision_type, shape.friction = VASE_TYPE, 1.0
             space.add(body, shape)
-            _add_floor_friction(space, body, cfg.VASE_MASS, _VASE_FRICTION_RADIUS)
             self.vase_bodies.append(body)
         self.box_body = None
         if "push_box" in layout:
@@ -194,8 +209,10 @@ class SafetyGymEnv(gymnasium.Env):
             for shape in shapes:
                 shape.collision_type, shape.friction = BOX_TYPE, 1.0
             space.add(body, *shapes)
-            _add_floor_friction(space, body, mass, _BOX_FRICTION_RADIUS * half / 0.2)
             self.box_body = body
+        self._free_bodies = [(b, _VASE_FRICTION_RADIUS) for b in self.vase_bodies]
+        if self.box_body is not None:
+            self._free_bodies.append((self.box_body, _BOX_FRICTION_RADIUS * self.box_half / 0.2))
         self.gremlin_bodies = []
         self.gremlin_home = list(layout.get("gremlins", []))
         self.gremlin_xy = [list(p) for p in self.gremlin_home]
@@ -207,6 +224,27 @@ class SafetyGymEnv(gymnasium.Env):
             space.add(body, shape)
             self.gremlin_bodies.append(body)
         self._gremlin_decay = math.exp(-self.robot.h / cfg.GREMLIN_LAG_S)
+
+    # ------------------------------------------------------------------ copying
+    _PHYSICS_ATTRS = (
+        "space", "body", "box_body", "vase_bodies", "gremlin_bodies", "_pillar_shapes",
+        "_button_shapes", "_free_bodies",
+    )  # fmt: skip
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle/deepcopy support with exact continuation.
+
+        pymunk restores a space with a rebuilt spatial index, so the solver visits contacts in
+        a different order than the original and the two drift apart (~1e-5 m per contact step,
+        then chaotically). Before its state is taken, the env therefore replaces its own
+        physics objects by a pickled round trip: original and copy then hold identically
+        restored worlds and continue bit for bit. A checkpoint thus perturbs the original by
+        that round trip: runs are reproducible given the same checkpoint schedule.
+        """
+        if self.space is not None:
+            fresh = copy.deepcopy({k: self.__dict__[k] for k in self._PHYSICS_ATTRS})
+            self.__dict__.update(fresh)
+        return self.__dict__.copy()
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -297,10 +335,14 @@ class SafetyGymEnv(gymnasium.Env):
         robot.set_action(a0, a1)
         h = robot.h
         gremlins = self.gremlin_bodies
+        free = self._free_bodies
         vx0 = vy0 = 0.0
         for _ in range(robot.substeps):
             if gremlins:
                 self._move_gremlins(h)
+            if free:
+                for free_body, lever in free:
+                    _floor_friction(free_body, h, lever)
             robot.substep(body)
             vx0, vy0 = body.velocity
             space.step(h)

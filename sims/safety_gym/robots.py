@@ -1,8 +1,10 @@
 """Robots of the Safety Gym replica: Point, Car and Mass as pymunk bodies (spec §3).
 
-Each robot is a dynamic pymunk body whose velocity is set before every physics substep from a
-calibrated actuator model; pymunk's contact solver then resolves collisions within the substep,
-so contacts, pushing and blocking stay physical.
+Each robot is a dynamic pymunk body receives, before every physics substep, the force and torque that
+move its velocity to what a calibrated actuator model prescribes for the substep. Chipmunk
+integrates that force before its contact solve (setting velocities directly would move the
+body before contacts are resolved and let it creep into obstacles), so contacts, pushing and
+blocking stay physical.
 
 * **Point** (spec §3.1): force ``0.3 * clip(a0, ±0.05)`` N along body +x with viscous damping
   0.01 N·s/m on both slide joints (mass 0.00518879 kg, time constant 0.519 s, 1.5 m/s at
@@ -154,8 +156,10 @@ class PointRobot(Robot):
         yaw = body.angle
         e = self.decay
         gain = self.force / self.damping * (1.0 - e)
-        body.velocity = (vx * e + gain * math.cos(yaw), vy * e + gain * math.sin(yaw))
-        body.angular_velocity = self.yaw_rate
+        k = self.mass / self.h
+        body.force = (k * (gain * math.cos(yaw) - vx * (1.0 - e)),
+                      k * (gain * math.sin(yaw) - vy * (1.0 - e)))  # fmt: skip
+        body.torque = self.moment / self.h * (self.yaw_rate - body.angular_velocity)
 
 
 class CarRobot(Robot):
@@ -240,9 +244,10 @@ class CarRobot(Robot):
         lateral = (vx * c + vy * s) * self.lateral_decay
         e = self.decay
         forward = self.target_speed + (forward - self.target_speed) * e
-        body.velocity = (forward * fx + lateral * c, forward * fy + lateral * s)
+        k = self.mass / self.h
+        body.force = (k * (forward * fx + lateral * c - vx), k * (forward * fy + lateral * s - vy))
         w = body.angular_velocity
-        body.angular_velocity = self.target_rate + (w - self.target_rate) * e
+        body.torque = self.moment / self.h * (self.target_rate - w) * (1.0 - e)
 
     def extra_sensors(self, body: pymunk.Body) -> list[float]:
         """2D equivalents of ``ballangvel_rear`` (3) and ``ballquat_rear`` (9, a 3x3 matrix).
@@ -315,7 +320,9 @@ class MassRobot(Robot):
         self.vy = a1 * scale
 
     def substep(self, body: pymunk.Body) -> None:
-        body.velocity = (self.vx, self.vy)
+        vx, vy = body.velocity
+        k = self.mass / self.h
+        body.force = (k * (self.vx - vx), k * (self.vy - vy))
 
 
 ROBOT_CLASSES: dict[str, type[Robot]] = {
