@@ -179,7 +179,7 @@ class CPO(TRPO):
         full_step = cpo_step(x, p, dual)
         self._nu = dual.nu
         old_params = parameters_to_vector(self._params()).detach()
-        r_old, c_old = float(surr_r), float(surr_c)
+        r_old, c_old = surr_r.item(), surr_c.item()
 
         def accept() -> bool:
             if float(self.mean_kl(batch, old)) > self.target_kl:

@@ -162,7 +162,7 @@ class TRPO(OnPolicyAlgorithm):
         xhx = float(x @ fvp(x))
         full_step = (2 * self.target_kl / max(xhx, 1e-12)) ** 0.5 * x
         old_params = parameters_to_vector(self._params()).detach()
-        surr_old = float(surr)
+        surr_old = surr.item()
 
         def accept() -> bool:
             kl = float(self.mean_kl(batch, old))

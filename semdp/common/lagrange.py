@@ -15,6 +15,7 @@ The self-paced variant changes ``cost_limit`` between updates (Alg. 1).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import deque
 from typing import Any
@@ -91,7 +92,7 @@ class Lagrange:
         return {
             "lambda": self.multiplier,
             "cost_limit": self.cost_limit,
-            "optimizer": self._optimizer.state_dict(),
+            "optimizer": copy.deepcopy(self._optimizer.state_dict()),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:

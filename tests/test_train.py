@@ -1,0 +1,145 @@
+"""The training app end to end on the test CMDP: every algorithm through Hydra compose, the run
+directory contract, seeded determinism, crash + resume identity, and fail-fast config errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from hydra.errors import ConfigCompositionException, MissingConfigException
+from omegaconf import DictConfig, OmegaConf, open_dict
+
+from semdp.algos.ppo_lag import PPOLag
+from semdp.algos.sac import SAC
+from semdp.common.logger import COMMON_COLUMNS, TIMING_COLUMNS
+from semdp.train import run
+
+ALGOS = ["ppo", "ppo_lag", "sp_ppo_lag", "trpo", "trpo_lag", "cpo", "sac"]
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with (path / "progress.csv").open() as f:
+        return list(csv.DictReader(f))
+
+
+def _without_timing(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows]
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_train_smoke_writes_the_run_directory_contract(
+    algo: str, tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    metrics = run(tiny_train(algo), tmp_path)
+    rows = _rows(tmp_path)
+    assert [int(r["epoch"]) for r in rows] == [1, 2, 3, 4]
+    assert list(rows[0])[: len(COMMON_COLUMNS)] == list(COMMON_COLUMNS)
+    assert [int(r["env_steps"]) for r in rows] == [200, 400, 600, 800]
+    assert rows[1]["eval_return"] != "" and rows[0]["eval_return"] == ""  # eval_every=2
+    saved = json.loads((tmp_path / "metrics.json").read_text())
+    assert saved == json.loads(json.dumps(metrics))
+    assert saved["status"] == "completed" and saved["env_steps"] == 800
+    assert saved["eval"]["episodes"] == 3
+    assert (tmp_path / "checkpoints" / "last.pt").is_file()
+    config = OmegaConf.load(tmp_path / "config.yaml")
+    assert config.cost_limit == 25.0 and config.algo_name
+    if algo in ("ppo_lag", "sp_ppo_lag", "trpo_lag"):
+        assert config.algo.lagrange.cost_limit == 25.0  # top-level limit interpolated
+        assert all(r["lagrange_multiplier"] != "" for r in rows if r["ep_cost"] != "")
+
+
+def test_train_cost_limit_reaches_the_algorithms(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    cfg = tiny_train("cpo", "cost_limit=7.5")
+    run(cfg, tmp_path)
+    assert {r["cost_threshold"] for r in _rows(tmp_path)} == {"7.5"}
+
+
+def test_train_sp_ppo_lag_logs_the_current_threshold_every_epoch(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    # Speeding costs ~30 per episode early on: below 64 -> the schedule tightens 64, 32, 25 ...
+    cfg = tiny_train("sp_ppo_lag", "algo.thresholds.initial_exponent=6",
+                     "algo.thresholds.num_thresholds=1")
+    run(cfg, tmp_path)
+    thresholds = [float(r["cost_threshold"]) for r in _rows(tmp_path)]
+    assert len(thresholds) == 4 and set(thresholds) <= {64.0, 32.0, 25.0}
+    assert thresholds == sorted(thresholds, reverse=True)
+
+
+@pytest.mark.parametrize("algo", ["ppo_lag", "cpo", "sac"])
+def test_train_same_seed_gives_identical_progress(
+    algo: str, tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    run(tiny_train(algo), tmp_path / "a")
+    run(tiny_train(algo), tmp_path / "b")
+    run(tiny_train(algo, "seed=1"), tmp_path / "c")
+    a, b, c = (_without_timing(_rows(tmp_path / d)) for d in "abc")
+    assert a == b
+    assert a != c
+
+
+@pytest.mark.parametrize(("algo", "cls"), [("ppo_lag", PPOLag), ("sac", SAC)])
+def test_train_resume_after_crash_matches_uninterrupted_run(
+    algo: str,
+    cls: type,
+    tiny_train: Callable[..., DictConfig],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    cfg = tiny_train(algo, "checkpoint_every=1")
+    reference = run(cfg, tmp_path / "ref")
+    original = cls.train_epoch
+
+    def crash_in_epoch_3(self: object) -> dict[str, float]:
+        if self.epoch == 2:  # type: ignore[attr-defined]
+            raise RuntimeError("simulated crash")
+        return original(self)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(cls, "train_epoch", crash_in_epoch_3)
+    with pytest.raises(RuntimeError, match="simulated crash"):
+        run(tiny_train(algo, "checkpoint_every=1"), tmp_path / "crashed")
+    failed = json.loads((tmp_path / "crashed" / "metrics.json").read_text())
+    assert failed["status"] == "failed" and "simulated crash" in failed["error"]
+    assert len(_rows(tmp_path / "crashed")) == 2  # partial CSV kept
+    monkeypatch.setattr(cls, "train_epoch", original)
+    resumed_cfg = tiny_train(algo)
+    with open_dict(resumed_cfg):
+        resumed_cfg.resume = str(tmp_path / "crashed")
+    resumed = run(resumed_cfg, tmp_path / "ignored")
+    assert _without_timing(_rows(tmp_path / "crashed")) == _without_timing(
+        _rows(tmp_path / "ref"))
+    assert resumed["eval"] == reference["eval"]
+    assert resumed["status"] == "completed"
+
+
+@pytest.mark.parametrize(
+    ("override", "key"),
+    [("cost_limit=-1", "cost_limit"), ("total_steps=0", "total_steps"),
+     ("budget.steps_per_epoch=0", "algo.steps_per_epoch"), ("seed=-3", "seed"),
+     ("env.num_envs=0", "env.num_envs")],
+)
+def test_train_bad_config_fails_fast_naming_the_key(
+    override: str, key: str, tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    with pytest.raises(ValueError, match=key.replace(".", r"\.")):
+        run(tiny_train("ppo_lag", override), tmp_path)
+    assert not (tmp_path / "progress.csv").exists()
+
+
+def test_train_unknown_algo_names_the_algo_group(
+    compose_train: Callable[..., DictConfig],
+) -> None:
+    with pytest.raises((MissingConfigException, ConfigCompositionException), match="algo"):
+        compose_train("algo=ppo_lagg")
+
+
+def test_train_resume_of_a_directory_without_checkpoint_fails(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    with pytest.raises(ValueError, match="resume"):
+        run(tiny_train("ppo", f"resume={tmp_path}"), tmp_path / "x")
