@@ -23,19 +23,28 @@ class LayoutError(RuntimeError):
     """No layout satisfying the keepouts was found."""
 
 
-def _draw(rng: np.random.Generator, extents: Sequence[float], keepout: float) -> Point2:
+def _first_clear(
+    rng: np.random.Generator,
+    extents: Sequence[float],
+    keepout: float,
+    placed: Sequence[tuple[float, float, float]],
+    draws: int,
+) -> Point2 | None:
+    """The first of ``draws`` uniform draws that keeps clear of ``placed`` (drawn in one batch)."""
     xmin, ymin, xmax, ymax = extents
-    lo_x, hi_x = xmin + keepout, xmax - keepout
-    lo_y, hi_y = ymin + keepout, ymax - keepout
-    return (float(rng.uniform(lo_x, hi_x)), float(rng.uniform(lo_y, hi_y)))
-
-
-def _clear(p: Point2, keepout: float, placed: Sequence[tuple[float, float, float]]) -> bool:
-    for qx, qy, qk in placed:
-        dx, dy = p[0] - qx, p[1] - qy
-        if dx * dx + dy * dy < (keepout + qk) ** 2:
-            return False
-    return True
+    low = (xmin + keepout, ymin + keepout)
+    high = (xmax - keepout, ymax - keepout)
+    candidates = rng.uniform(low, high, size=(draws, 2))
+    if placed:
+        others = np.asarray(placed, dtype=np.float64)
+        gap2 = ((candidates[:, None, :] - others[None, :, :2]) ** 2).sum(axis=2)
+        ok = np.all(gap2 >= (keepout + others[None, :, 2]) ** 2, axis=1)
+        index = int(np.argmax(ok))
+        if not ok[index]:
+            return None
+    else:
+        index = 0
+    return (float(candidates[index, 0]), float(candidates[index, 1]))
 
 
 def sample_layout(
@@ -75,11 +84,8 @@ def sample_layout(
                 continue
             points: list[Point2] = []
             for _i in range(spec.count):
-                for _draw_i in range(PLACEMENT_DRAWS):
-                    p = _draw(rng, extents, spec.keepout)
-                    if _clear(p, spec.keepout, placed):
-                        break
-                else:
+                p = _first_clear(rng, extents, spec.keepout, placed, PLACEMENT_DRAWS)
+                if p is None:
                     ok = False
                     break
                 points.append(p)
@@ -103,8 +109,4 @@ def sample_goal(
     Returns:
         The new goal, or ``None`` after 10000 failed draws (the episode then terminates).
     """
-    for _ in range(GOAL_DRAWS):
-        p = _draw(rng, extents, keepout)
-        if _clear(p, keepout, placed):
-            return p
-    return None
+    return _first_clear(rng, extents, keepout, placed, GOAL_DRAWS)

@@ -1,6 +1,6 @@
 """Robots of the Safety Gym replica: Point, Car and Mass as pymunk bodies (spec §3).
 
-Each robot is a dynamic pymunk body receives, before every physics substep, the force and torque that
+Each robot is a dynamic pymunk body that receives, before every physics substep, the force and
 move its velocity to what a calibrated actuator model prescribes for the substep. Chipmunk
 integrates that force before its contact solve (setting velocities directly would move the
 body before contacts are resolved and let it creep into obstacles), so contacts, pushing and
