@@ -1,0 +1,503 @@
+"""Self-paced Lagrangian on the toy problem of thesis §2.5.1 (Eq. 2.11, Fig. 2.1; SPEC §2.1).
+
+The problem::
+
+    min_x f(x) = (x - pi)^2 / 50    s.t.    c(x) = -5 cos(x) <= d
+
+is built once, symbolically, in CasADi: ``f``, ``c`` and their gradients are ``cs.Function``
+objects and the IPOPT solver is one parametric ``nlpsol`` with the threshold ``d`` as its
+parameter. For ``d = 0`` the feasible set is the union of the intervals
+``[-pi/2 + 2k pi, pi/2 + 2k pi]``; the global minimisers are ``pi/2`` and ``3 pi/2``
+(``f* = pi^2/200``) and a start in ``[-5pi/2, -3pi/2]`` has the local minimiser ``-3pi/2``
+(``f = 25 pi^2/200 ~ 1.2337``) in its own component.
+
+Methods (one :class:`SelfPacedLagrangianToy` holds the shared settings):
+
+* :meth:`~SelfPacedLagrangianToy.lagrangian` -- primal-dual dynamics on ``L = f + lam (c - d)``
+  (Eqs. 2.4-2.5 with ``d = 0``): Adam on ``x``, dual ascent on ``lam >= 0`` every
+  ``lambda_update_every`` steps.
+* :meth:`~SelfPacedLagrangianToy.self_paced` -- the same dynamics with the threshold curriculum
+  ``D = {2^(N-i) | i = 0..M}`` followed by the target 0 (Eqs. 2.8-2.10, 2.12, Alg. 1), with two
+  readings of the threshold rule (:data:`THRESHOLD_RULES`).
+* :meth:`~SelfPacedLagrangianToy.ipopt_direct`, :meth:`~SelfPacedLagrangianToy.ipopt_homotopy` and
+  :meth:`~SelfPacedLagrangianToy.global_reference` -- exact solves with IPOPT: directly at ``d = 0``
+  (local), warm-started through the thresholds (the exact self-paced homotopy), and multi-start.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import numbers
+from dataclasses import dataclass, field
+
+import casadi as cs
+import numpy as np
+import numpy.typing as npt
+
+logger = logging.getLogger(__name__)
+
+#: Readings of the threshold rule. ``"tighten"`` (§2.4.1): start at the loosest threshold and move
+#: to the next tighter one once the current stage is solved (its KKT conditions hold within
+#: ``stationarity_tol``). ``"literal"`` (Alg. 1 / Eq. 2.9): at every multiplier update use the
+#: largest threshold not above the current cost, ``d_i = max{d in D u {0} : d <= c(x)}`` (the target
+#: 0 when the cost is below every threshold).
+THRESHOLD_RULES: tuple[str, ...] = ("tighten", "literal")
+#: Multiplier updates. ``"sgd"``: Eq. 2.10, ``lam <- max(0, lam + lr_lambda (c(x) - d_i))``.
+#: ``"adam"``: Adam ascent on ``lam`` with learning rate ``lr_lambda``, projected onto ``lam >= 0``.
+LAMBDA_OPTIMIZERS: tuple[str, ...] = ("sgd", "adam")
+
+#: Optimal value of Eq. 2.11 (attained at x = pi/2 and x = 3 pi/2).
+GLOBAL_OPTIMUM_VALUE: float = math.pi**2 / 200.0
+#: Value at the local minimiser -3 pi/2 of the component [-5 pi/2, -3 pi/2].
+LOCAL_OPTIMUM_VALUE: float = 25.0 * math.pi**2 / 200.0
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def _check_real(name: str, value: object) -> float:
+    """Return ``value`` as a finite float or raise ValueError naming the parameter."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a finite real number, got {value!r}")
+    result = float(value)
+    if not math.isfinite(result):
+        raise ValueError(f"{name} must be a finite real number, got {value!r}")
+    return result
+
+
+def _check_int(name: str, value: object, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _check_positive(name: str, value: object) -> float:
+    result = _check_real(name, value)
+    if result <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return result
+
+
+def _check_choice(name: str, value: object, options: tuple[str, ...]) -> str:
+    if value not in options:
+        raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
+    return str(value)
+
+
+def threshold_schedule(initial_exponent: int, num_thresholds: int) -> tuple[float, ...]:
+    """Thresholds of Eq. 2.12, loosest first, followed by the target 0.
+
+    Args:
+        initial_exponent: N in ``d_i = 2^(N - i)``.
+        num_thresholds: M, the last index (so the curriculum has M + 1 thresholds before 0).
+
+    Returns:
+        ``(2^N, 2^(N-1), ..., 2^(N-M), 0.0)``.
+
+    Raises:
+        ValueError: if N is not an integer or M is not an integer >= 0.
+    """
+    if isinstance(initial_exponent, bool) or not isinstance(initial_exponent, numbers.Integral):
+        raise ValueError(f"initial_exponent must be an integer, got {initial_exponent!r}")
+    num_thresholds = _check_int("num_thresholds", num_thresholds, 0)
+    return (*(2.0 ** (int(initial_exponent) - i) for i in range(num_thresholds + 1)), 0.0)
+
+
+def literal_threshold_index(cost: float, schedule: tuple[float, ...]) -> int:
+    """Eq. 2.9 read literally: index of the largest threshold not above ``cost``.
+
+    ``schedule`` is sorted loosest first and ends with the target; when ``cost`` is below every
+    threshold (a strictly feasible point) the target (last index) is returned.
+    """
+    for index, threshold in enumerate(schedule):
+        if threshold <= cost:
+            return index
+    return len(schedule) - 1
+
+
+class _Adam:
+    """Adam (Kingma & Ba) on a scalar, with a learning-rate multiplier per step."""
+
+    def __init__(self, lr: float, beta1: float, beta2: float, eps: float = 1e-8) -> None:
+        self.lr, self.beta1, self.beta2, self.eps = lr, beta1, beta2, eps
+        self.m = 0.0
+        self.v = 0.0
+        self.t = 0
+
+    def step(self, grad: float, lr_scale: float = 1.0) -> float:
+        """Return the descent step ``lr * m_hat / (sqrt(v_hat) + eps)`` for gradient ``grad``."""
+        self.t += 1
+        self.m = self.beta1 * self.m + (1.0 - self.beta1) * grad
+        self.v = self.beta2 * self.v + (1.0 - self.beta2) * grad * grad
+        m_hat = self.m / (1.0 - self.beta1**self.t)
+        v_hat = self.v / (1.0 - self.beta2**self.t)
+        return lr_scale * self.lr * m_hat / (math.sqrt(v_hat) + self.eps)
+
+
+def _frozen(values: list[float] | FloatArray) -> FloatArray:
+    array = np.asarray(values, dtype=np.float64)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True)
+class DynamicsResult:
+    """Outcome of the Adam primal-dual dynamics (plain or self-paced Lagrangian).
+
+    Attributes:
+        method: ``"lagrangian"`` or ``"self_paced_<rule>"``.
+        x, f, c: final iterate and its objective and constraint values.
+        lagrange_multiplier: final ``lam``.
+        threshold: the threshold in force at the end (0 when the curriculum finished).
+        iterations: number of x updates.
+        reached_global: ``|f - f*| <= global_tol`` and ``c <= feasibility_tol``.
+        x_history, f_history, c_history, lambda_history, threshold_history: one entry per
+            iteration, the initial point first (length ``iterations + 1``).
+    """
+
+    method: str
+    x: float
+    f: float
+    c: float
+    lagrange_multiplier: float
+    threshold: float
+    iterations: int
+    reached_global: bool
+    x_history: FloatArray = field(repr=False)
+    f_history: FloatArray = field(repr=False)
+    c_history: FloatArray = field(repr=False)
+    lambda_history: FloatArray = field(repr=False)
+    threshold_history: FloatArray = field(repr=False)
+
+
+@dataclass(frozen=True)
+class IpoptResult:
+    """Outcome of an IPOPT solve (direct, homotopy or multi-start).
+
+    Attributes:
+        method: ``"ipopt_direct"``, ``"ipopt_homotopy"`` or ``"ipopt_multistart"``.
+        x, f, c: solution and its objective and constraint values.
+        lagrange_multiplier: IPOPT's multiplier of ``c(x) - d <= 0`` at the last solve.
+        iterations: total IPOPT iterations over all solves.
+        success: every solve reported ``Solve_Succeeded`` (multi-start: the best one did).
+        reached_global: ``|f - f*| <= global_tol`` and ``c <= feasibility_tol``.
+        thresholds: threshold ``d`` of each solve (homotopy: the curriculum; multi-start: 0 per
+            start).
+        x_path: solution of each solve, aligned with ``thresholds`` (multi-start: the starts'
+            local solutions).
+    """
+
+    method: str
+    x: float
+    f: float
+    c: float
+    lagrange_multiplier: float
+    iterations: int
+    success: bool
+    reached_global: bool
+    thresholds: FloatArray = field(repr=False)
+    x_path: FloatArray = field(repr=False)
+
+
+class ToyProblem:
+    """CasADi model of Eq. 2.11: ``f``, ``c``, their gradients and a parametric IPOPT solver.
+
+    Attributes:
+        objective: ``cs.Function`` x -> f(x).
+        constraint: ``cs.Function`` x -> c(x).
+        terms: ``cs.Function`` x -> (f, c, df/dx, dc/dx), all from CasADi's AD.
+        nlp_solver: ``nlpsol`` for ``min f(x) s.t. c(x) - d <= 0`` with parameter ``d``.
+    """
+
+    def __init__(self, ipopt_options: dict[str, object] | None = None) -> None:
+        x_sym = cs.SX.sym("x")
+        d_sym = cs.SX.sym("d")
+        f_sym = (x_sym - cs.pi) ** 2 / 50.0
+        c_sym = -5.0 * cs.cos(x_sym)
+        self.objective = cs.Function("objective", [x_sym], [f_sym], ["x"], ["f"])
+        self.constraint = cs.Function("constraint", [x_sym], [c_sym], ["x"], ["c"])
+        self.terms = cs.Function(
+            "terms",
+            [x_sym],
+            [f_sym, c_sym, cs.gradient(f_sym, x_sym), cs.gradient(c_sym, x_sym)],
+            ["x"],
+            ["f", "c", "df", "dc"],
+        )
+        options: dict[str, object] = {
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.tol": 1e-12,
+            "ipopt.constr_viol_tol": 1e-10,
+            "print_time": False,
+        }
+        options.update(ipopt_options or {})
+        nlp = {"x": x_sym, "p": d_sym, "f": f_sym, "g": c_sym - d_sym}
+        self.nlp_solver = cs.nlpsol("toy_nlp", "ipopt", nlp, options)
+
+    def evaluate(self, x: float) -> tuple[float, float, float, float]:
+        """Return ``(f, c, df/dx, dc/dx)`` at ``x``."""
+        f, c, df, dc = self.terms(x)
+        return float(f), float(c), float(df), float(dc)
+
+    def solve(
+        self, x_init: float, threshold: float, lam_init: float = 0.0
+    ) -> tuple[float, float, int, bool]:
+        """One IPOPT solve of ``min f s.t. c <= threshold`` from ``x_init``.
+
+        Returns:
+            ``(x, lam, iterations, success)``.
+        """
+        solution = self.nlp_solver(x0=x_init, p=threshold, lbg=-cs.inf, ubg=0.0, lam_g0=lam_init)
+        stats = self.nlp_solver.stats()
+        return (
+            float(solution["x"]),
+            float(solution["lam_g"]),
+            int(stats.get("iter_count", 0)),
+            bool(stats.get("success", False)),
+        )
+
+
+class SelfPacedLagrangianToy:
+    """Plain vs self-paced Lagrangian on Eq. 2.11, plus the IPOPT references (SPEC §2.1).
+
+    Config keys in ``conf/toy.yaml`` equal these argument names.
+
+    Args:
+        lr_x: Adam learning rate for ``x`` (decays exponentially to ``lr_x * lr_decay``).
+        lr_lambda: multiplier step: the constant ``beta`` of Eq. 2.10 (``lambda_optimizer="sgd"``)
+            or Adam's learning rate (``"adam"``, decays like ``lr_x``).
+        lambda_init: initial multiplier (>= 0).
+        lambda_optimizer: one of :data:`LAMBDA_OPTIMIZERS`.
+        lambda_update_every: x updates per multiplier update (the "lower frequency" of §2.4.2).
+        n_iterations: number of x updates.
+        lr_decay: final learning-rate multiplier in (0, 1]; 1 keeps the rates constant.
+        adam_beta1, adam_beta2: Adam's moment decay rates.
+        initial_exponent: N of Eq. 2.12.
+        num_thresholds: M of Eq. 2.12 (>= 0).
+        threshold_rule: one of :data:`THRESHOLD_RULES`.
+        stationarity_tol: "tighten" rule: a stage is solved when ``c <= d_i``,
+            ``|df + lam dc| <= tol`` and ``|lam (c - d_i)| <= tol``.
+        multistart_points: number of IPOPT starts spread over ``multistart_range``.
+        multistart_range: interval ``(low, high)`` of the multi-start grid.
+        global_tol: ``|f - f*|`` below which a result counts as the global optimum.
+        feasibility_tol: ``c(x)`` above which a result counts as infeasible.
+
+    Raises:
+        ValueError: on any invalid argument, naming it.
+    """
+
+    def __init__(
+        self,
+        lr_x: float = 0.05,
+        lr_lambda: float = 1e-3,
+        lambda_init: float = 1.0,
+        lambda_optimizer: str = "sgd",
+        lambda_update_every: int = 10,
+        n_iterations: int = 10_000,
+        lr_decay: float = 1e-3,
+        adam_beta1: float = 0.9,
+        adam_beta2: float = 0.99,
+        initial_exponent: int = 3,
+        num_thresholds: int = 8,
+        threshold_rule: str = "tighten",
+        stationarity_tol: float = 1e-2,
+        multistart_points: int = 41,
+        multistart_range: tuple[float, float] | list[float] = (-3 * math.pi, 3 * math.pi),
+        global_tol: float = 1e-3,
+        feasibility_tol: float = 1e-4,
+    ) -> None:
+        self.lr_x = _check_positive("lr_x", lr_x)
+        self.lr_lambda = _check_positive("lr_lambda", lr_lambda)
+        self.lambda_init = _check_real("lambda_init", lambda_init)
+        if self.lambda_init < 0.0:
+            raise ValueError(f"lambda_init must be >= 0, got {lambda_init!r}")
+        self.lambda_optimizer = _check_choice(
+            "lambda_optimizer", lambda_optimizer, LAMBDA_OPTIMIZERS
+        )
+        self.lambda_update_every = _check_int("lambda_update_every", lambda_update_every, 1)
+        self.n_iterations = _check_int("n_iterations", n_iterations, 1)
+        self.lr_decay = _check_positive("lr_decay", lr_decay)
+        if self.lr_decay > 1.0:
+            raise ValueError(f"lr_decay must be in (0, 1], got {lr_decay!r}")
+        for name, value in (("adam_beta1", adam_beta1), ("adam_beta2", adam_beta2)):
+            if not 0.0 <= _check_real(name, value) < 1.0:
+                raise ValueError(f"{name} must be in [0, 1), got {value!r}")
+        self.adam_beta1, self.adam_beta2 = float(adam_beta1), float(adam_beta2)
+        self.schedule = threshold_schedule(initial_exponent, num_thresholds)
+        self.initial_exponent, self.num_thresholds = int(initial_exponent), int(num_thresholds)
+        self.threshold_rule = _check_choice("threshold_rule", threshold_rule, THRESHOLD_RULES)
+        self.stationarity_tol = _check_positive("stationarity_tol", stationarity_tol)
+        self.multistart_points = _check_int("multistart_points", multistart_points, 1)
+        if len(multistart_range) != 2:
+            raise ValueError(f"multistart_range must be (low, high), got {multistart_range!r}")
+        low = _check_real("multistart_range[0]", multistart_range[0])
+        high = _check_real("multistart_range[1]", multistart_range[1])
+        if not low < high:
+            raise ValueError(f"multistart_range must satisfy low < high, got {multistart_range!r}")
+        self.multistart_range = (low, high)
+        self.global_tol = _check_positive("global_tol", global_tol)
+        self.feasibility_tol = _check_positive("feasibility_tol", feasibility_tol)
+        self.problem = ToyProblem()
+
+    # ------------------------------------------------------------------ helpers
+    def reached_global(self, f: float, c: float) -> bool:
+        """Whether ``(f, c)`` is the global optimum within ``global_tol`` and feasible."""
+        return abs(f - GLOBAL_OPTIMUM_VALUE) <= self.global_tol and c <= self.feasibility_tol
+
+    # ------------------------------------------------------------------ dynamics
+    def lagrangian(self, x0: float) -> DynamicsResult:
+        """Plain Lagrangian primal-dual dynamics from ``x0`` (threshold 0 throughout)."""
+        return self._dynamics(x0, schedule=(0.0,), rule="tighten", method="lagrangian")
+
+    def self_paced(self, x0: float, threshold_rule: str | None = None) -> DynamicsResult:
+        """Self-paced Lagrangian (Alg. 1 on Eq. 2.11) from ``x0``.
+
+        Args:
+            x0: start.
+            threshold_rule: overrides the instance's rule (one of :data:`THRESHOLD_RULES`).
+        """
+        rule = self.threshold_rule if threshold_rule is None else threshold_rule
+        rule = _check_choice("threshold_rule", rule, THRESHOLD_RULES)
+        return self._dynamics(x0, schedule=self.schedule, rule=rule, method=f"self_paced_{rule}")
+
+    def _dynamics(
+        self, x0: float, schedule: tuple[float, ...], rule: str, method: str
+    ) -> DynamicsResult:
+        x = _check_real("x0", x0)
+        lam = self.lambda_init
+        x_optimizer = _Adam(self.lr_x, self.adam_beta1, self.adam_beta2)
+        lambda_optimizer = _Adam(self.lr_lambda, self.adam_beta1, self.adam_beta2)
+        stage = 0
+        threshold = schedule[0] if rule == "tighten" else schedule[-1]
+        f, c, df, dc = self.problem.evaluate(x)
+        history = {"x": [x], "f": [f], "c": [c], "lam": [lam], "d": [threshold]}
+        for step in range(self.n_iterations):
+            lr_scale = self.lr_decay ** (step / self.n_iterations)
+            if step % self.lambda_update_every == 0:
+                if rule == "literal":
+                    threshold = schedule[literal_threshold_index(c, schedule)]
+                else:
+                    stage_solved = (
+                        c <= threshold
+                        and abs(df + lam * dc) <= self.stationarity_tol
+                        and abs(lam * (c - threshold)) <= self.stationarity_tol
+                    )
+                    if stage_solved and stage < len(schedule) - 1:
+                        stage += 1
+                        threshold = schedule[stage]
+                        logger.debug("step %d: threshold tightened to %g", step, threshold)
+                violation = c - threshold
+                if self.lambda_optimizer == "sgd":  # Eq. 2.10
+                    lam = max(0.0, lam + self.lr_lambda * violation)
+                else:  # Adam ascent on lam, projected
+                    lam = max(0.0, lam + lambda_optimizer.step(violation, lr_scale))
+            x -= x_optimizer.step(df + lam * dc, lr_scale)
+            f, c, df, dc = self.problem.evaluate(x)
+            history["x"].append(x)
+            history["f"].append(f)
+            history["c"].append(c)
+            history["lam"].append(lam)
+            history["d"].append(threshold)
+        return DynamicsResult(
+            method=method,
+            x=x,
+            f=f,
+            c=c,
+            lagrange_multiplier=lam,
+            threshold=threshold,
+            iterations=self.n_iterations,
+            reached_global=self.reached_global(f, c),
+            x_history=_frozen(history["x"]),
+            f_history=_frozen(history["f"]),
+            c_history=_frozen(history["c"]),
+            lambda_history=_frozen(history["lam"]),
+            threshold_history=_frozen(history["d"]),
+        )
+
+    # ------------------------------------------------------------------ IPOPT
+    def _ipopt_result(
+        self,
+        method: str,
+        x: float,
+        lam: float,
+        iterations: int,
+        success: bool,
+        thresholds: list[float],
+        x_path: list[float],
+    ) -> IpoptResult:
+        f, c, _, _ = self.problem.evaluate(x)
+        return IpoptResult(
+            method=method,
+            x=x,
+            f=f,
+            c=c,
+            lagrange_multiplier=lam,
+            iterations=iterations,
+            success=success,
+            reached_global=self.reached_global(f, c),
+            thresholds=_frozen(thresholds),
+            x_path=_frozen(x_path),
+        )
+
+    def ipopt_direct(self, x0: float) -> IpoptResult:
+        """IPOPT on ``c(x) <= 0`` from ``x0``: a local solution (the component of the start)."""
+        x_start = _check_real("x0", x0)
+        x, lam, iterations, success = self.problem.solve(x_start, 0.0)
+        return self._ipopt_result("ipopt_direct", x, lam, iterations, success, [0.0], [x])
+
+    def ipopt_homotopy(self, x0: float) -> IpoptResult:
+        """Exact self-paced homotopy: IPOPT warm-started through ``2^N, ..., 2^(N-M), 0``.
+
+        Each stage solves Eq. 2.8 for its threshold from the previous stage's solution and
+        multiplier. Stage thresholds above ``max c = 5`` make the constraint inactive, so the first
+        stage returns the unconstrained minimiser ``pi``; the tightening stages then move the
+        solution outwards along the boundary ``c(x) = d`` to ``pi/2`` or ``3 pi/2``.
+        """
+        x = _check_real("x0", x0)
+        lam, total_iterations, all_success = 0.0, 0, True
+        x_path: list[float] = []
+        for threshold in self.schedule:
+            x, lam, iterations, success = self.problem.solve(x, threshold, lam)
+            total_iterations += iterations
+            all_success &= success
+            x_path.append(x)
+        return self._ipopt_result(
+            "ipopt_homotopy", x, lam, total_iterations, all_success, list(self.schedule), x_path
+        )
+
+    def global_reference(self) -> IpoptResult:
+        """Multi-start IPOPT at ``d = 0``: the best of ``multistart_points`` local solutions."""
+        starts = np.linspace(*self.multistart_range, self.multistart_points)
+        best: tuple[float, float, float, bool] | None = None
+        total_iterations = 0
+        x_path: list[float] = []
+        for start in starts:
+            x, lam, iterations, success = self.problem.solve(float(start), 0.0)
+            total_iterations += iterations
+            x_path.append(x)
+            f, c, _, _ = self.problem.evaluate(x)
+            if success and c <= self.feasibility_tol and (best is None or f < best[0]):
+                best = (f, x, lam, success)
+        if best is None:
+            raise RuntimeError("multi-start IPOPT found no feasible solution")
+        _, x, lam, success = best
+        return self._ipopt_result(
+            "ipopt_multistart",
+            x,
+            lam,
+            total_iterations,
+            success,
+            [0.0] * len(starts),
+            x_path,
+        )
+
+    def solve_all(self, x0: float) -> dict[str, DynamicsResult | IpoptResult]:
+        """Every method from ``x0``: plain and self-paced dynamics, IPOPT direct/homotopy/global."""
+        _check_real("x0", x0)
+        return {
+            "lagrangian": self.lagrangian(x0),
+            "self_paced": self.self_paced(x0),
+            "ipopt_direct": self.ipopt_direct(x0),
+            "ipopt_homotopy": self.ipopt_homotopy(x0),
+            "ipopt_multistart": self.global_reference(),
+        }
