@@ -30,21 +30,27 @@ def _first_clear(
     placed: Sequence[tuple[float, float, float]],
     draws: int,
 ) -> Point2 | None:
-    """The first of ``draws`` uniform draws that keeps clear of ``placed`` (drawn in one batch)."""
+    """The first of ``draws`` uniform draws that keeps clear of ``placed`` (``None`` if none).
+
+    Draws come from the env's generator in batches of 32 points; the checks are plain Python,
+    which beats numpy on these few-element comparisons.
+    """
     xmin, ymin, xmax, ymax = extents
-    low = (xmin + keepout, ymin + keepout)
-    high = (xmax - keepout, ymax - keepout)
-    candidates = rng.uniform(low, high, size=(draws, 2))
-    if placed:
-        others = np.asarray(placed, dtype=np.float64)
-        gap2 = ((candidates[:, None, :] - others[None, :, :2]) ** 2).sum(axis=2)
-        ok = np.all(gap2 >= (keepout + others[None, :, 2]) ** 2, axis=1)
-        index = int(np.argmax(ok))
-        if not ok[index]:
-            return None
-    else:
-        index = 0
-    return (float(candidates[index, 0]), float(candidates[index, 1]))
+    x0, y0 = xmin + keepout, ymin + keepout
+    sx, sy = xmax - xmin - 2 * keepout, ymax - ymin - 2 * keepout
+    left = draws
+    while left > 0:
+        batch = min(left, 32)
+        left -= batch
+        values = rng.random(2 * batch).tolist()
+        for j in range(batch):
+            cx, cy = x0 + sx * values[2 * j], y0 + sy * values[2 * j + 1]
+            for qx, qy, qk in placed:
+                if (cx - qx) ** 2 + (cy - qy) ** 2 < (keepout + qk) ** 2:
+                    break
+            else:
+                return (cx, cy)
+    return None
 
 
 def sample_layout(
