@@ -343,8 +343,7 @@ class SafetyGymEnv(gymnasium.Env):
             if free:
                 for free_body, lever in free:
                     _floor_friction(free_body, h, lever)
-            robot.substep(body)
-            vx0, vy0 = body.velocity
+            vx0, vy0 = robot.substep(body)
             space.step(h)
             self.sim_time += h
         vx, vy = body.velocity
@@ -358,7 +357,8 @@ class SafetyGymEnv(gymnasium.Env):
         if self._needs_contacts:
             body.each_arbiter(self._record_arbiter)
 
-        reward, goal_met = self._reward(rx, ry, touched)
+        box = self.box_body.position if self.box_body is not None else None
+        reward, goal_met = self._reward(rx, ry, box, touched)
         info = self._cost(rx, ry, touched)
         if self.task == "button" and self.button_timer:
             self.button_timer -= 1
@@ -371,7 +371,7 @@ class SafetyGymEnv(gymnasium.Env):
             reward = cfg.REWARD_CLIP
         elif reward < -cfg.REWARD_CLIP:
             reward = -cfg.REWARD_CLIP
-        return self._observation(), reward, terminated, False, info
+        return self._observation(rx, ry, vx, vy, box), reward, terminated, False, info
 
     def _record_arbiter(self, arbiter: pymunk.Arbiter) -> None:
         a, b = arbiter.shapes
@@ -392,9 +392,9 @@ class SafetyGymEnv(gymnasium.Env):
             xy[0], xy[1] = nx, ny
 
     # ------------------------------------------------------------------ reward / cost
-    def _distances(self, rx: float, ry: float) -> tuple[float, float]:
+    def _distances(self, rx: float, ry: float, box: Any = None) -> tuple[float, float]:
         if self.task == "push":
-            bx, by = self.box_body.position
+            bx, by = self.box_body.position if box is None else box
             dz_ab = cfg.BOX_Z[self.robot_name] - cfg.AGENT_Z
             dz_bg = cfg.BOX_Z[self.robot_name] - cfg.GOAL_Z
             d_ab = math.sqrt((bx - rx) ** 2 + (by - ry) ** 2 + dz_ab * dz_ab)
@@ -406,9 +406,11 @@ class SafetyGymEnv(gymnasium.Env):
         rx, ry = self.body.position
         self._d_robot_box, self._d_goal = self._distances(rx, ry)
 
-    def _reward(self, rx: float, ry: float, touched: list[pymunk.Shape]) -> tuple[float, bool]:
+    def _reward(
+        self, rx: float, ry: float, box: Any, touched: list[pymunk.Shape]
+    ) -> tuple[float, bool]:
         """Dense distance-decrease reward plus the goal bonus (spec §7)."""
-        d_ab, d_goal = self._distances(rx, ry)
+        d_ab, d_goal = self._distances(rx, ry, box)
         reward = self._d_goal - d_goal
         if self.task == "push":
             reward += self._d_robot_box - d_ab
@@ -521,11 +523,23 @@ class SafetyGymEnv(gymnasium.Env):
         self._reset_distances()
 
     # ------------------------------------------------------------------ observation
-    def _observation(self) -> np.ndarray:
-        """Sensors + pseudo-LiDAR channels, flattened in Safety-Gymnasium's order (spec §9)."""
+    def _observation(
+        self,
+        rx: float | None = None,
+        ry: float = 0.0,
+        vx: float = 0.0,
+        vy: float = 0.0,
+        box: Any = None,
+    ) -> np.ndarray:
+        """Sensors + pseudo-LiDAR channels, flattened in Safety-Gymnasium's order (spec §9).
+
+        The robot state may be passed in (the step already read it); otherwise it is read.
+        """
         body = self.body
-        rx, ry = body.position
-        vx, vy = body.velocity
+        if rx is None:
+            rx, ry = body.position
+            vx, vy = body.velocity
+            box = self.box_body.position if self.box_body is not None else None
         yaw = body.angle
         c, s = math.cos(yaw), math.sin(yaw)
         ax, ay = self._last_accel
@@ -548,7 +562,7 @@ class SafetyGymEnv(gymnasium.Env):
             elif kind == "pillars":
                 points = self.pillars
             elif kind == "push_box":
-                points = (self.box_body.position,)
+                points = (box,)
             elif kind == "vases":
                 points = [b.position for b in self.vase_bodies]
             elif kind == "gremlins":

@@ -99,8 +99,12 @@ class Robot:
         """Latch a clipped action (both components already in [-1, 1])."""
         raise NotImplementedError
 
-    def substep(self, body: pymunk.Body) -> None:
-        """Set the body velocity for the next pymunk substep of length ``h``."""
+    def substep(self, body: pymunk.Body) -> tuple[float, float]:
+        """Set force/torque for the next pymunk substep of length ``h``.
+
+        Returns:
+            The body velocity read before the substep (the env's accelerometer uses it).
+        """
         raise NotImplementedError
 
     def extra_sensors(self, body: pymunk.Body) -> list[float]:
@@ -151,7 +155,7 @@ class PointRobot(Robot):
         rate = _interp(self.yaw_actions, self.yaw_rates, abs(a1))
         self.yaw_rate = rate if a1 >= 0.0 else -rate
 
-    def substep(self, body: pymunk.Body) -> None:
+    def substep(self, body: pymunk.Body) -> tuple[float, float]:
         vx, vy = body.velocity
         yaw = body.angle
         e = self.decay
@@ -160,6 +164,7 @@ class PointRobot(Robot):
         body.force = (k * (gain * math.cos(yaw) - vx * (1.0 - e)),
                       k * (gain * math.sin(yaw) - vy * (1.0 - e)))  # fmt: skip
         body.torque = self.moment / self.h * (self.yaw_rate - body.angular_velocity)
+        return vx, vy
 
 
 class CarRobot(Robot):
@@ -235,7 +240,7 @@ class CarRobot(Robot):
     def set_action(self, a0: float, a1: float) -> None:
         self.target_speed, self.target_rate = self.steady_state(a0, a1)
 
-    def substep(self, body: pymunk.Body) -> None:
+    def substep(self, body: pymunk.Body) -> tuple[float, float]:
         vx, vy = body.velocity
         yaw = body.angle
         c, s = math.cos(yaw), math.sin(yaw)
@@ -248,6 +253,7 @@ class CarRobot(Robot):
         body.force = (k * (forward * fx + lateral * c - vx), k * (forward * fy + lateral * s - vy))
         w = body.angular_velocity
         body.torque = self.moment / self.h * (self.target_rate - w) * (1.0 - e)
+        return vx, vy
 
     def extra_sensors(self, body: pymunk.Body) -> list[float]:
         """2D equivalents of ``ballangvel_rear`` (3) and ``ballquat_rear`` (9, a 3x3 matrix).
@@ -319,10 +325,11 @@ class MassRobot(Robot):
         self.vx = a0 * scale
         self.vy = a1 * scale
 
-    def substep(self, body: pymunk.Body) -> None:
+    def substep(self, body: pymunk.Body) -> tuple[float, float]:
         vx, vy = body.velocity
         k = self.mass / self.h
         body.force = (k * (self.vx - vx), k * (self.vy - vy))
+        return vx, vy
 
 
 ROBOT_CLASSES: dict[str, type[Robot]] = {
