@@ -5,13 +5,15 @@ nonlinear least-squares problem with residuals
 
 * ``x_N - g`` (the objective f_goal, Eq. 3.4),
 * ``sqrt(rho) W z`` (a small smoothness regulariser, also in the other backends' objective),
-* ``sqrt(lambda w_smooth) (h_smooth / sigma_smooth - 1)_+`` (the smoothness budget, Eq. 3.6),
+* ``sqrt(lambda w_smooth) (sqrt(h_smooth / sigma_smooth) - 1)_+`` (the smoothness budget,
+  Eq. 3.6; the square root makes the residual a norm, which Gauss-Newton linearises well),
 * ``sqrt(lambda w_obstacle) (c_j - d_ij)_+`` (the hinge of Eq. 3.7; with the continuous option
   ``d_ij`` is the distance of segment ``[x_i, x_{i+1}]`` to obstacle j).
 
 The start constraint (Eq. 3.5) is exact: ``x_1`` and ``v_1`` are not variables. Residuals, ``J^T r``
 and ``J^T J`` come from one CasADi SX function per compiled obstacle-slot count (built once and
-cached); the LM iteration itself (Marquardt damping, monotone step acceptance) is numpy.
+cached); the LM iteration itself (Marquardt damping, monotone step acceptance) is in
+:mod:`solvers.planner.planner`.
 """
 
 from __future__ import annotations
@@ -63,7 +65,8 @@ def build_lm_functions(
     residuals = [
         positions[-1] - goal,
         np.sqrt(weights.smooth_regulariser) * smooth_res,
-        ca.sqrt(lam * weights.smooth_budget) * ca.fmax(0.0, h / weights.sigma_smooth - 1.0),
+        ca.sqrt(lam * weights.smooth_budget)
+        * ca.fmax(0.0, ca.sqrt(h + _DISTANCE_EPS) / np.sqrt(weights.sigma_smooth) - 1.0),
     ]
     obstacle_scale = ca.sqrt(lam * weights.obstacle)
     for j in range(n_slots):
@@ -84,66 +87,3 @@ def build_lm_functions(
     )
     cost_fn = ca.Function(f"lm_cost_{n_slots}", [z, p], [cost])
     return step, cost_fn
-
-
-@dataclass
-class LMOutcome:
-    """Result of one LM run."""
-
-    z: np.ndarray
-    cost: float
-    iterations: int
-    converged: bool
-
-
-def levenberg_marquardt(
-    step: ca.Function,
-    cost_fn: ca.Function,
-    z0: np.ndarray,
-    params: np.ndarray,
-    *,
-    iterations: int,
-    damping: float = 1e-4,
-    tolerance: float = 1e-10,
-) -> LMOutcome:
-    """Monotone Levenberg-Marquardt with Marquardt scaling (Madsen-Nielsen-Tingleff rules).
-
-    A step is accepted only when it lowers the cost (so the cost never exceeds its initial value,
-    which bounds how far the plan can move); the damping is divided by 3 after an accepted step
-    and multiplied by 4 after a rejected one.
-    """
-    z = z0.copy()
-    mu = damping
-    cost, grad, hess = step(z, params)
-    cost = float(cost)
-    grad = np.asarray(grad).ravel()
-    hess = np.asarray(hess)
-    diag_floor = 1e-9
-    converged = False
-    done = 0
-    for done in range(1, iterations + 1):
-        diag = np.diag(hess)
-        damped = hess + np.diag(mu * np.maximum(diag, diag_floor) + 1e-12)
-        try:
-            delta = -np.linalg.solve(damped, grad)
-        except np.linalg.LinAlgError:
-            mu *= 10.0
-            continue
-        candidate = z + delta
-        new_cost = float(cost_fn(candidate, params))
-        if new_cost < cost:
-            improvement = cost - new_cost
-            z = candidate
-            cost, grad, hess = step(z, params)
-            cost = float(cost)
-            grad = np.asarray(grad).ravel()
-            hess = np.asarray(hess)
-            mu = max(mu / 3.0, 1e-12)
-            if improvement <= tolerance * max(cost, 1e-12) or cost <= 1e-20:
-                converged = True
-                break
-        else:
-            mu *= 4.0
-            if mu > 1e12:
-                break
-    return LMOutcome(z, cost, done, converged)

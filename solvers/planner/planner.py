@@ -82,11 +82,44 @@ class _LMKernel:
         self._cost_eval()
         return float(self.fc[0])
 
-    def mapped(self, batch: int) -> tuple:
-        """Mapped step and cost functions for ``batch`` problems (built once per size)."""
+    def mapped(self, batch: int) -> _MappedKernel:
+        """The step and cost functions mapped over ``batch`` problems (built once per size)."""
         if batch not in self._maps:
-            self._maps[batch] = (self.step.map(batch), self.cost.map(batch))
+            self._maps[batch] = _MappedKernel(self.step, self.cost, self.n_var, len(self.p), batch)
         return self._maps[batch]
+
+
+class _MappedKernel:
+    """``_LMKernel`` for B problems at once: one CasADi call evaluates all of them."""
+
+    def __init__(self, step, cost, n_var: int, n_param: int, batch: int) -> None:  # noqa: ANN001
+        self.n_var = n_var
+        # CasADi is column-major: a (B, n) C-order array is the n x B matrix of B columns.
+        self.z = np.zeros((batch, n_var))
+        self.p = np.zeros((batch, n_param))
+        self.f = np.zeros(batch)
+        self.g = np.zeros((batch, n_var))
+        self.h = np.zeros((batch, n_var, n_var))
+        self.zc = np.zeros((batch, n_var))
+        self.fc = np.zeros(batch)
+        self._step_buf, self._step_eval = step.map(batch).buffer()
+        for k, arr in enumerate((self.z, self.p)):
+            self._step_buf.set_arg(k, memoryview(arr))
+        for k, arr in enumerate((self.f, self.g, self.h)):
+            self._step_buf.set_res(k, memoryview(arr))
+        self._cost_buf, self._cost_eval = cost.map(batch).buffer()
+        self._cost_buf.set_arg(0, memoryview(self.zc))
+        self._cost_buf.set_arg(1, memoryview(self.p))
+        self._cost_buf.set_res(0, memoryview(self.fc))
+
+    def evaluate(self, z: np.ndarray) -> None:
+        self.z[:] = z
+        self._step_eval()
+
+    def costs_at(self, z: np.ndarray) -> np.ndarray:
+        self.zc[:] = z
+        self._cost_eval()
+        return self.fc.copy()
 
 
 def levenberg_marquardt(
@@ -95,12 +128,15 @@ def levenberg_marquardt(
     *,
     iterations: int,
     damping: float,
+    backtracks: int = 8,
 ) -> tuple[np.ndarray, float, int]:
     """Monotone LM with Marquardt scaling on a kernel whose parameters are already set.
 
     A step is accepted only when it lowers the penalty cost, so the cost never exceeds its value
-    at ``z0``; the damping is divided by 3 after an accepted step and multiplied by 4 after a
-    rejected one. Returns (z, cost, iterations).
+    at ``z0``. When the full step fails (the hinge terms switch on and off, so the Gauss-Newton
+    model can be poor far away) the same direction is halved up to ``backtracks`` times (a cost
+    evaluation each, cheap next to a Jacobian) and the damping is raised for the next iteration;
+    after a full step the damping is divided by 3. Returns (z, cost, iterations).
     """
     z = z0.copy()
     kernel.evaluate(z)
@@ -117,20 +153,27 @@ def levenberg_marquardt(
         except sla.LinAlgError:
             mu *= 10.0
             continue
-        candidate = z - sla.cho_solve(factor, kernel.g, check_finite=False)
-        new_cost = kernel.cost_at(candidate)
-        if new_cost < cost:
-            improvement = cost - new_cost
-            z = candidate
-            kernel.evaluate(z)
-            cost = float(kernel.f[0])
-            mu = max(mu / 3.0, 1e-12)
-            if improvement <= 1e-12 * max(cost, 1.0) or cost <= 1e-24:
+        direction = -sla.cho_solve(factor, kernel.g, check_finite=False)
+        scale = 1.0
+        accepted = False
+        for _ in range(backtracks + 1):
+            new_cost = kernel.cost_at(z + scale * direction)
+            if new_cost < cost:
+                accepted = True
                 break
-        else:
-            mu *= 4.0
+            scale *= 0.5
+        if not accepted:
+            mu *= 16.0
             if mu > 1e12:
                 break
+            continue
+        improvement = cost - new_cost
+        z = z + scale * direction
+        kernel.evaluate(z)
+        cost = float(kernel.f[0])
+        mu = max(mu / 3.0, 1e-12) if scale == 1.0 else mu * 4.0
+        if improvement <= 1e-12 * max(cost, 1.0) or cost <= 1e-24:
+            break
     return z, cost, done
 
 
@@ -348,6 +391,19 @@ class SafeTrajectoryPlanner:
             ]
         return self._plan_batch_lm(starts_arr, subgoals_arr, obstacles_list)
 
+    def warmup(self) -> SafeTrajectoryPlanner:
+        """Build every compiled solver now (one per obstacle-slot count) instead of on first use."""
+        counts = sorted({bucket_size(k, self.max_obstacles) for k in range(self.max_obstacles + 1)})
+        for count in counts:
+            if self.backend == "lm":
+                self._lm_kernel(count)
+            elif self.backend == "ipopt":
+                self._ipopt_program(count, "first")
+                self._ipopt_program(count, "cold")
+            else:
+                self._scp_program(count)
+        return self
+
     # ------------------------------------------------------------------ preparation
     def _prepare(self, start: object, subgoal: object, obstacles: object) -> PreparedProblem:
         reach = self.reach
@@ -404,10 +460,8 @@ class SafeTrajectoryPlanner:
         kernel = self._lm_kernel(bucket_size(len(prep.selected), self.max_obstacles))
         n_slots = (len(kernel.p) - 3) // 3
         lam = self.lm_lambda_max if prep.escape_mode else self.lm_lambda
-        z = self._guess(prep)
         kernel.p[:] = self._lm_params(prep, n_slots, lam)
-        if warm is not None and kernel.cost_at(warm) < kernel.cost_at(z):
-            z = warm
+        z = min(self._lm_candidates(prep, warm), key=kernel.cost_at)
         total = 0
         while True:
             kernel.p[:] = self._lm_params(prep, n_slots, lam)
@@ -418,71 +472,129 @@ class SafeTrajectoryPlanner:
             if not self.lm_adaptive or lam >= self.lm_lambda_max or self._passes(prep, z):
                 break
             lam = min(2.0 * lam, self.lm_lambda_max)
-        return _BackendPlan(z, "solved", total, lam)
+        return self._lm_repair(prep, _BackendPlan(z, "solved", total, lam))
+
+    def _lm_repair(self, prep: PreparedProblem, plan: _BackendPlan) -> _BackendPlan:
+        """Shrink a penalty plan that fails the certificate towards the start.
+
+        ``theta z`` (every waypoint moved towards the start by the factor theta, velocities
+        likewise) is exactly as smooth up to ``theta^2``; the largest theta in 0.9, 0.8, ... 0.1
+        that passes the certificate is kept (status ``solved_shortened``) before falling back to
+        the stationary trajectory.
+        """
+        if self._passes(prep, plan.z):
+            return plan
+        for theta in np.arange(0.9, 0.05, -0.1):
+            if self._passes(prep, theta * plan.z):
+                return _BackendPlan(theta * plan.z, f"solved_shortened(theta={theta:.1f})",
+                                    plan.iterations, plan.multiplier)
+        return plan
+
+    def _lm_candidates(self, prep: PreparedProblem, warm: np.ndarray | None) -> list[np.ndarray]:
+        """Initial guesses for LM; the one with the lowest penalty cost is used.
+
+        The detour guess, the straight smoothest path to the (reach-clipped) goal, each scaled
+        towards the start to fit the smoothness budget, and the stationary trajectory (the
+        thesis' initialisation, hinge-free whenever the start is clear).
+        """
+        distance = float(np.hypot(*prep.goal))
+        target = prep.goal if distance <= self.reach else prep.goal * (self.reach / distance)
+        candidates = [np.zeros(self.prior.n_var), self.prior.goal_map @ target]
+        if len(prep.selected):
+            detour = self._guess(prep)
+            candidates.append(detour)
+            h = self.prior.smoothness(detour)
+            if h > self.sigma_smooth:
+                candidates.append(detour * np.sqrt(self.sigma_smooth / h))
+        if warm is not None:
+            candidates.append(warm)
+        return candidates
 
     def _plan_batch_lm(
         self, starts: np.ndarray, subgoals: np.ndarray, obstacles_list: Sequence[object]
     ) -> list[PlanResult]:
+        """LM on B problems in lockstep: the same iteration as :func:`levenberg_marquardt`."""
         tic = time.perf_counter()
-        preps = [self._prepare(s, g, o) for s, g, o in zip(starts, subgoals, obstacles_list,
-                                                           strict=True)]
+        preps = [
+            self._prepare(s, g, o)
+            for s, g, o in zip(starts, subgoals, obstacles_list, strict=True)
+        ]
         batch = len(preps)
         n_slots = max(bucket_size(len(p.selected), self.max_obstacles) for p in preps)
-        kernel = self._lm_kernel(n_slots)
-        step_map, cost_map = kernel.mapped(batch)
+        kernel = self._lm_kernel(n_slots).mapped(batch)
         nv = self.prior.n_var
         lams = np.array([self.lm_lambda_max if p.escape_mode else self.lm_lambda for p in preps])
-        zs = np.stack([self._guess(p) for p in preps], axis=1)  # (nv, B)
+        kernel.p[:] = [self._lm_params(p, n_slots, lam) for p, lam in zip(preps, lams, strict=True)]
+        candidate_sets = [self._lm_candidates(p, None) for p in preps]
+        zs = np.stack([c[0] for c in candidate_sets])
+        best = kernel.costs_at(zs)
+        for k in range(1, max(len(c) for c in candidate_sets)):
+            trial = np.stack([c[k] if k < len(c) else c[0] for c in candidate_sets])
+            costs = kernel.costs_at(trial)
+            better = costs < best
+            zs[better] = trial[better]
+            best[better] = costs[better]
         totals = np.zeros(batch, dtype=int)
         active = np.ones(batch, dtype=bool)
-        while active.any():
-            params = np.stack(
-                [self._lm_params(p, n_slots, lam) for p, lam in zip(preps, lams, strict=True)],
-                axis=1,
-            )
+        diag_index = np.arange(nv)
+        while True:
             mu = np.full(batch, self.lm_damping)
-            f, g, h = step_map(zs, params)
-            f = np.asarray(f).ravel()
-            g = np.asarray(g)
-            h = np.asarray(h).reshape(nv, batch, nv)
             running = active.copy()
+            kernel.evaluate(zs)
+            cost = kernel.f.copy()
             for _ in range(self.lm_iterations):
                 if not running.any():
                     break
-                candidates = zs.copy()
+                totals[running] += 1
+                directions = np.zeros((batch, nv))
                 for b in np.flatnonzero(running):
-                    hb = h[:, b, :].copy()
-                    diag = np.diag(hb).copy()
-                    hb.flat[:: nv + 1] += mu[b] * np.maximum(diag, 1e-9) + 1e-12
+                    damped = kernel.h[b].copy()
+                    diag = damped[diag_index, diag_index].copy()
+                    damped[diag_index, diag_index] += mu[b] * np.maximum(diag, 1e-9) + 1e-12
                     try:
-                        factor = sla.cho_factor(hb, check_finite=False)
+                        factor = sla.cho_factor(damped, check_finite=False)
                     except sla.LinAlgError:
                         mu[b] *= 10.0
                         continue
-                    candidates[:, b] -= sla.cho_solve(factor, g[:, b], check_finite=False)
-                new_f = np.asarray(cost_map(candidates, params)).ravel()
-                accept = running & (new_f < f)
-                totals[running] += 1
-                zs[:, accept] = candidates[:, accept]
-                mu[accept] = np.maximum(mu[accept] / 3.0, 1e-12)
-                mu[running & ~accept] *= 4.0
-                converged = accept & (f - new_f <= 1e-12 * np.maximum(new_f, 1.0))
+                    directions[b] = -sla.cho_solve(factor, kernel.g[b], check_finite=False)
+                scale = np.ones(batch)
+                pending = running.copy()
+                new_cost = cost.copy()
+                for _ in range(9):
+                    trial_costs = kernel.costs_at(zs + scale[:, None] * directions)
+                    ok = pending & (trial_costs < cost)
+                    new_cost[ok] = trial_costs[ok]
+                    pending &= ~ok
+                    if not pending.any():
+                        break
+                    scale[pending] *= 0.5
+                accepted = running & ~pending
+                rejected = running & pending
+                mu[rejected] *= 16.0
+                improvement = cost - new_cost
+                zs[accepted] += scale[accepted, None] * directions[accepted]
+                full = accepted & (scale == 1.0)
+                mu[full] = np.maximum(mu[full] / 3.0, 1e-12)
+                mu[accepted & ~full] *= 4.0
+                if accepted.any():
+                    kernel.evaluate(zs)
+                    cost[accepted] = kernel.f[accepted]
+                converged = accepted & (improvement <= 1e-12 * np.maximum(cost, 1.0))
                 running &= ~converged & (mu <= 1e12)
-                if accept.any():
-                    f2, g2, h2 = step_map(zs, params)
-                    f = np.asarray(f2).ravel()
-                    g = np.asarray(g2)
-                    h = np.asarray(h2).reshape(nv, batch, nv)
             if not self.lm_adaptive:
                 break
             for b in np.flatnonzero(active):
-                if lams[b] >= self.lm_lambda_max or self._passes(preps[b], zs[:, b]):
+                if lams[b] >= self.lm_lambda_max or self._passes(preps[b], zs[b]):
                     active[b] = False
                 else:
                     lams[b] = min(2.0 * lams[b], self.lm_lambda_max)
+                    kernel.p[b] = self._lm_params(preps[b], n_slots, lams[b])
+            if not active.any():
+                break
         elapsed = (time.perf_counter() - tic) / batch
         return [
-            self._certify(p, _BackendPlan(zs[:, b].copy(), "solved", int(totals[b]), lams[b]),
+            self._certify(p, self._lm_repair(p, _BackendPlan(zs[b].copy(), "solved",
+                                                                 int(totals[b]), lams[b])),
                           elapsed)
             for b, p in enumerate(preps)
         ]
@@ -571,6 +683,7 @@ class SafeTrajectoryPlanner:
             smooth_regulariser=self.smooth_weight,
             trust_region=self.scp_trust_region,
             max_iterations=self.scp_max_iterations,
+            margin=self.feasibility_margin,
         )
         return _BackendPlan(outcome.z, outcome.status, outcome.iterations)
 

@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg as sla
 
 #: Names of the solver backends.
 BACKENDS: tuple[str, ...] = ("ipopt", "lm", "scp")
@@ -44,6 +45,7 @@ class GPPrior:
     dt: float
     W: np.ndarray = field(repr=False)
     hessian: np.ndarray = field(repr=False)
+    hessian_inv: np.ndarray = field(repr=False)
     goal_map: np.ndarray = field(repr=False)
     reach_coef: np.ndarray = field(repr=False)
 
@@ -106,7 +108,7 @@ def build_gp_prior(n_waypoints: int, dt: float) -> GPPrior:
         reach[i] = 1.0 / schur[0, 0]
         if i == n_waypoints - 1:
             goal_map = hessian_inv @ select.T @ np.linalg.inv(schur)
-    return GPPrior(n_waypoints, dt, W, hessian, goal_map, reach)
+    return GPPrior(n_waypoints, dt, W, hessian, hessian_inv, goal_map, reach)
 
 
 def split(z: np.ndarray, n_waypoints: int) -> tuple[np.ndarray, np.ndarray]:
@@ -272,16 +274,13 @@ def detour_guess(
         side = -1.0 if offset > 0.0 else 1.0
         foot = centre + ((positions[k] - centre) @ direction) * direction
         via_index.append(k)
-        via_point.append(foot + side * perp * (radius * inflate + abs(offset) * 0.0) +
-                         side * perp * max(0.0, 0.0))
+        via_point.append(foot + side * perp * radius * inflate)
     if not via_index:
         return z
     rows = [*via_index, n - 1]
     points = [*via_point, target]
-    select = np.zeros((2 * len(rows), prior.n_var))
-    for r, k in enumerate(rows):
-        select[2 * r, 2 * k] = 1.0
-        select[2 * r + 1, 2 * k + 1] = 1.0
-    hessian_inv_select = np.linalg.solve(prior.hessian, select.T)
-    schur = select @ hessian_inv_select
-    return hessian_inv_select @ np.linalg.solve(schur, np.concatenate(points))
+    cols = np.ravel([[2 * k, 2 * k + 1] for k in rows])
+    hessian_inv_select = prior.hessian_inv[:, cols]
+    schur = hessian_inv_select[cols]
+    # scipy's LAPACK, not numpy.linalg: numpy's threaded BLAS is slow on a busy 2-core machine
+    return hessian_inv_select @ sla.solve(schur, np.concatenate(points), assume_a="pos")

@@ -31,12 +31,13 @@ import scipy.sparse as sp
 
 from solvers.planner.problem import GPPrior
 
-#: OSQP settings: tight tolerances (the QP solution is re-checked exactly), no printing.
+#: OSQP settings; every QP solution is re-checked exactly (and cut back), so a loose or
+#: unfinished QP solve costs progress, never safety.
 OSQP_SETTINGS: dict[str, object] = {
     "verbose": False,
-    "eps_abs": 1e-7,
-    "eps_rel": 1e-7,
-    "max_iter": 4000,
+    "eps_abs": 1e-5,
+    "eps_rel": 1e-5,
+    "max_iter": 200,
     "polishing": False,
     "warm_starting": True,
     "adaptive_rho": True,
@@ -130,6 +131,12 @@ class ScpProgram:
         normals = diff / np.maximum(dist, 1e-12)[..., None]
         return normals, dist
 
+    def _clear(self, z: np.ndarray, centres: np.ndarray, need: np.ndarray) -> bool:
+        positions = np.zeros((self.n + 1, 2))
+        positions[1:] = z[: 2 * self.n].reshape(self.n, 2)
+        _, dist = self._normals(positions, centres)
+        return bool(np.all(dist >= need[:, None]))
+
     def solve(
         self,
         z0: np.ndarray,
@@ -141,6 +148,7 @@ class ScpProgram:
         smooth_regulariser: float,
         trust_region: float,
         max_iterations: int,
+        margin: float = 0.0,
         tolerance: float = 1e-7,
     ) -> ScpOutcome:
         """Run SCP from the feasible ``z0`` (every pair keeps ``need``; ``h(z0) <= sigma``).
@@ -154,6 +162,8 @@ class ScpProgram:
             smooth_regulariser: rho (must match the value the program was built with).
             trust_region: Half-width of the box trust region on every variable.
             max_iterations: QP solves at most.
+            margin: The part of ``need`` that is a safety margin: QP solutions that violate
+                ``need - margin / 2`` exactly are cut back.
             tolerance: Stop when the step's infinity norm falls below this.
         """
         prior = self.prior
@@ -173,6 +183,7 @@ class ScpProgram:
             return float(end @ end + smooth_regulariser * (r @ r))
 
         current = objective(z)
+        exact_need = need - 0.5 * margin
         status = "max_iter"
         converged = False
         iterations = 0
@@ -212,9 +223,14 @@ class ScpProgram:
                     obstacle_flat = obstacle_values.ravel()
                 values[2 * nv :] = obstacle_flat
                 lower[base:] = obstacle_lower.ravel()
+            # normalise the budget row (its gradient can be large) for OSQP's conditioning
+            scale_row = max(float(np.linalg.norm(grad_h)), 1e-12)
+            values[nv : 2 * nv] /= scale_row
+            upper[nv] /= scale_row
             self.solver.update(Ax=values[self.perm], l=lower, u=upper)
+            self.solver.warm_start(x=z)
             result = self.solver.solve()
-            if result.info.status_val not in (1, 2):  # solved, solved inaccurate
+            if result.x is None or not np.all(np.isfinite(result.x)):
                 status = f"qp_{result.info.status}"
                 break
             step = result.x - z
@@ -226,16 +242,23 @@ class ScpProgram:
             if a * t * t + b * t + h > sigma_smooth and a > 0.0:
                 disc = b * b - 4.0 * a * (h - sigma_smooth)
                 t = max(0.0, min(1.0, (-b + np.sqrt(max(disc, 0.0))) / (2.0 * a)))
+            # exact clearance (the QP is solved to a tolerance): cut the step back if needed
+            for _ in range(12):
+                if m == 0 or self._clear(z + t * step, centres, exact_need):
+                    break
+                t *= 0.5
+            else:
+                t = 0.0
             candidate = z + t * step
             value = objective(candidate)
-            if value > current + 1e-12:
-                status = "no_descent"
+            if t == 0.0 or value > current - 1e-12:
+                status = "converged" if t > 0.0 else "stalled"
                 converged = True
                 break
             z = candidate
             improvement = current - value
             current = value
-            if np.max(np.abs(t * step)) < tolerance or improvement < 1e-12:
+            if np.max(np.abs(t * step)) < tolerance or improvement < 1e-10 * max(current, 1e-3):
                 status = "converged"
                 converged = True
                 break

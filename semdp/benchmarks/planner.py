@@ -1,0 +1,166 @@
+"""``semdp-bench planner``: every planner backend on one seeded problem suite (SPEC §0, §6).
+
+Usage::
+
+    semdp-bench planner backends=[ipopt,lm,lm_adaptive,scp] n=500 seed=0 batch=16 out=DIR
+
+Variants: ``ipopt``, ``lm`` (fixed lambda, 10 iterations: the training setting), ``lm_adaptive``
+(lambda doubled until certified, up to 1024: the evaluation setting), ``scp``; append ``_cont``
+for the continuous (segment) certificate, e.g. ``scp_cont``. ``batch=B`` adds a row for the LM
+batch entry point (B problems per call). Prints a table and writes ``planner_summary.csv`` and
+``planner_results.csv`` (one row per problem and variant) to ``out``
+(default ``outputs/benchmarks/planner``).
+"""
+
+from __future__ import annotations
+
+import csv
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from semdp.paths import REPO_ROOT
+from solvers.planner import SafeTrajectoryPlanner, random_problems
+
+THESIS_THESEUS_MS = 63.0
+
+VARIANTS: dict[str, dict[str, object]] = {
+    "ipopt": {"backend": "ipopt"},
+    "lm": {"backend": "lm", "lm_iterations": 10, "lm_adaptive": False},
+    "lm_adaptive": {"backend": "lm", "lm_iterations": 10, "lm_adaptive": True},
+    "scp": {"backend": "scp"},
+}
+
+
+def _parse(argv: list[str]) -> dict[str, str]:
+    args: dict[str, str] = {}
+    for item in argv:
+        if "=" not in item:
+            raise SystemExit(f"expected key=value arguments, got {item!r}")
+        key, value = item.split("=", 1)
+        args[key.strip()] = value.strip()
+    unknown = set(args) - {"backends", "n", "seed", "batch", "out", "max_count"}
+    if unknown:
+        raise SystemExit(
+            f"unknown arguments {sorted(unknown)}; valid: backends, n, seed, batch, out, max_count"
+        )
+    return args
+
+
+def _variant_kwargs(name: str) -> dict[str, object]:
+    base = name.removesuffix("_cont")
+    if base not in VARIANTS:
+        valid = [*VARIANTS, *(f"{v}_cont" for v in VARIANTS)]
+        raise SystemExit(f"unknown backend variant {name!r}; valid: {valid}")
+    return dict(VARIANTS[base], continuous=name.endswith("_cont"))
+
+
+def main(argv: list[str]) -> None:
+    """Run the suite and print the table."""
+    args = _parse(argv)
+    names = [s.strip() for s in args.get("backends", "[ipopt,lm,lm_adaptive,scp]").strip("[]").split(",")]
+    n = int(args.get("n", 500))
+    seed = int(args.get("seed", 0))
+    batch = int(args.get("batch", 16))
+    out = Path(args.get("out", REPO_ROOT / "outputs" / "benchmarks" / "planner"))
+    problems = random_problems(n, seed, max_count=int(args.get("max_count", 8)))
+    rows: list[dict[str, object]] = []
+    summary: list[dict[str, object]] = []
+    objectives: dict[str, np.ndarray] = {}
+    reached: dict[str, np.ndarray] = {}
+    runs: list[tuple[str, dict[str, object], int]] = [(v, _variant_kwargs(v), 1) for v in names]
+    if batch > 1 and any(v.startswith("lm") for v in names):
+        runs.append((f"lm[batch{batch}]", _variant_kwargs("lm"), batch))
+    for label, kwargs, size in runs:
+        planner = SafeTrajectoryPlanner(**kwargs).warmup()
+        for problem in problems[:20]:  # build every compiled slot count before timing
+            planner.plan(problem.start, problem.subgoal, problem.obstacles, warm_start=False)
+        if size > 1:
+            planner.plan_batch(
+                [p.start for p in problems[:size]],
+                [p.subgoal for p in problems[:size]],
+                [p.obstacles for p in problems[:size]],
+            )
+        times = np.zeros(n)
+        results = []
+        if size == 1:
+            for k, problem in enumerate(problems):
+                tic = time.perf_counter()
+                result = planner.plan(
+                    problem.start, problem.subgoal, problem.obstacles, warm_start=False
+                )
+                times[k] = time.perf_counter() - tic
+                results.append(result)
+        else:
+            for lo in range(0, n, size):
+                chunk = problems[lo : lo + size]
+                tic = time.perf_counter()
+                out_chunk = planner.plan_batch(
+                    [p.start for p in chunk], [p.subgoal for p in chunk], [p.obstacles for p in chunk]
+                )
+                times[lo : lo + len(chunk)] = (time.perf_counter() - tic) / len(chunk)
+                results.extend(out_chunk)
+        objective = np.array([r.objective for r in results])
+        objectives[label] = objective
+        reached[label] = np.array([r.reached_subgoal for r in results])
+        feasible = np.array(
+            [r.feasible and r.min_clearance >= planner.clearance - 1e-6 for r in results]
+        )
+        for k, (problem, result) in enumerate(zip(problems, results, strict=True)):
+            rows.append({
+                "variant": label, "problem": k, "n_obstacles": len(problem.obstacles),
+                "time_ms": times[k] * 1e3, "feasible": result.feasible,
+                "fallback": result.fallback, "reached_subgoal": result.reached_subgoal,
+                "objective": result.objective, "min_clearance": result.min_clearance,
+                "min_clearance_continuous": result.min_clearance_continuous,
+                "iterations": result.iterations, "status": result.status,
+            })
+        ms = times * 1e3
+        summary.append({
+            "variant": label, "n": n, "median_ms": np.median(ms), "p95_ms": np.percentile(ms, 95),
+            "max_ms": ms.max(), "feasible_pct": 100 * feasible.mean(),
+            "fallback_pct": 100 * np.mean([r.fallback for r in results]),
+            "reached_pct": 100 * reached[label].mean(),
+            "iters_median": float(np.median([r.iterations for r in results])),
+            "speedup_vs_theseus": THESIS_THESEUS_MS / np.median(ms),
+        })
+    reference = "ipopt" if "ipopt" in objectives else None
+    for row in summary:
+        label = str(row["variant"])
+        if reference is not None:
+            gap = objectives[label] - objectives[reference]
+            row["obj_gap_median"] = float(np.median(gap))
+            row["obj_gap_mean"] = float(np.mean(gap))
+            row["reached_vs_ipopt_pct"] = 100 * float(
+                np.mean(reached[label][reached[reference]]) if reached[reference].any() else np.nan
+            )
+        else:
+            row["obj_gap_median"] = row["obj_gap_mean"] = row["reached_vs_ipopt_pct"] = float("nan")
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "planner_summary.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(summary[0]))
+        writer.writeheader()
+        writer.writerows(summary)
+    with open(out / "planner_results.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    print(f"planner benchmark: {n} problems, seed {seed}, {platform.processor() or platform.machine()}")
+    header = (
+        "| variant | median ms | p95 ms | max ms | feasible % | fallback % | reached % "
+        "| reached where IPOPT reached % | obj gap to IPOPT (median / mean) | iters (median) "
+        "| x faster than Theseus LM (63 ms) |"
+    )
+    print(header)
+    print("|" + "---|" * 11)
+    for row in summary:
+        print(
+            f"| {row['variant']} | {row['median_ms']:.2f} | {row['p95_ms']:.2f} | "
+            f"{row['max_ms']:.1f} | {row['feasible_pct']:.1f} | {row['fallback_pct']:.1f} | "
+            f"{row['reached_pct']:.1f} | {row['reached_vs_ipopt_pct']:.1f} | "
+            f"{row['obj_gap_median']:.2g} / {row['obj_gap_mean']:.2g} | {row['iters_median']:.0f} | "
+            f"{row['speedup_vs_theseus']:.0f} |"
+        )
+    print(f"wrote {out / 'planner_summary.csv'} and {out / 'planner_results.csv'}")
