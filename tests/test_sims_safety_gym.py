@@ -240,3 +240,29 @@ def test_goal_level0_is_a_robot_only_obstacle_free_world() -> None:
         assert list(env.space.shapes) == list(env.body.shapes)
         env.set_goal_position((1.0, -0.5))
         np.testing.assert_array_equal(env.goal_position, [1.0, -0.5])
+
+
+def test_sizes_override_changes_geometry_and_cost_radius() -> None:
+    env = SafetyGymEnv("point", "push", 2, sizes={"hazard_radius": 0.5, "pillar_radius": 0.1,
+                                                  "box_half": 0.1})  # fmt: skip
+    env.reset(seed=0, options={"layout": {"agent": (0.0, 0.0), "hazards": [(0.45, 0.0)],
+                                          "pillars": [(1.0, 1.0)]}})  # fmt: skip
+    assert env.step(np.zeros(2))[4]["cost_hazards"] == 1.0  # inside r = 0.5, outside r = 0.3
+    np.testing.assert_allclose(env.obstacles(("pillars",)), [[1.0, 1.0, 0.1]])
+    assert env.box_mass == pytest.approx(1.28e-4 / 4)
+    with pytest.raises(ValueError, match="valid"):
+        SafetyGymEnv("point", "push", 1, sizes={"wall": 1.0})
+    with pytest.raises(ValueError, match="positive"):
+        SafetyGymEnv("point", "push", 1, sizes={"box_half": -1.0})
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_random_rollout_stays_finite_and_in_space(env_id: str) -> None:
+    env = gymnasium.make(env_id)
+    obs, _ = env.reset(seed=7)
+    env.action_space.seed(7)
+    for _ in range(300):
+        obs, reward, _, _, info = env.step(env.action_space.sample())
+        assert env.observation_space.contains(obs)
+        assert np.isfinite(reward) and (abs(reward) < 0.1 or info["goal_met"])
+        assert info["cost"] in (0.0, 1.0)

@@ -84,6 +84,8 @@ class SafetyGymEnv(gymnasium.Env):
         level: 0, 1 or 2.
         render_mode: ``None`` or ``"rgb_array"`` (top-down frames).
         render_size: frame side in pixels.
+        sizes: optional overrides of ``hazard_radius``, ``pillar_radius``, ``box_half`` and
+            ``goal_size`` (perturbed variants; the defaults are the spec's).
 
     Reset options: ``{"layout": {...}}`` plants positions: ``"agent": (x, y)``,
     ``"agent_yaw": float`` and, per object type, a list of ``(x, y)`` (its length may differ
@@ -106,6 +108,7 @@ class SafetyGymEnv(gymnasium.Env):
         level: int = 1,
         render_mode: str | None = None,
         render_size: int = 256,
+        sizes: Mapping[str, float] | None = None,
     ) -> None:
         cfg.validate(robot, task, level)
         if render_mode not in (None, "rgb_array"):
@@ -120,6 +123,8 @@ class SafetyGymEnv(gymnasium.Env):
         self.hazard_radius = cfg.HAZARD_RADIUS[task]
         self.goal_size = cfg.BUTTON_GOAL_SIZE if task == "button" else cfg.GOAL_SIZE
         self.box_half, self.box_mass = cfg.BOX_GEOMETRY[robot]
+        self.pillar_radius = cfg.PILLAR_RADIUS
+        self._apply_sizes(sizes)
         self._constrained = {k: v.constrained for k, v in objs.items()}
         self._cost_keys = self._make_cost_keys()
         # contact-based costs or rewards: Button presses, vases (Goal2), pillars (Push2)
@@ -151,6 +156,31 @@ class SafetyGymEnv(gymnasium.Env):
         self.space: pymunk.Space | None = None
 
     # ------------------------------------------------------------------ construction
+    SIZE_KEYS: ClassVar[tuple[str, ...]] = (
+        "hazard_radius",
+        "pillar_radius",
+        "box_half",
+        "goal_size",
+    )
+
+    def _apply_sizes(self, sizes: Mapping[str, float] | None) -> None:
+        """Override object sizes (for perturbed variants, e.g. a real-robot-like Push).
+
+        Keepouts stay the spec's; the box mass scales with its area (constant density).
+        """
+        if not sizes:
+            return
+        bad = set(sizes) - set(self.SIZE_KEYS)
+        if bad:
+            raise ValueError(f"unknown size keys {sorted(bad)}; valid: {list(self.SIZE_KEYS)}")
+        for key, value in sizes.items():
+            value = float(value)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"sizes[{key!r}] must be a positive number, got {value!r}")
+            if key == "box_half":
+                self.box_mass *= (value / self.box_half) ** 2
+            setattr(self, key, value)
+
     def _make_cost_keys(self) -> tuple[str, ...]:
         keys = []
         if self._constrained.get("hazards"):
@@ -181,7 +211,7 @@ class SafetyGymEnv(gymnasium.Env):
         self.buttons = list(layout.get("buttons", []))
         self._pillar_shapes = []
         for px, py in self.pillars:
-            shape = pymunk.Circle(space.static_body, cfg.PILLAR_RADIUS, (px, py))
+            shape = pymunk.Circle(space.static_body, self.pillar_radius, (px, py))
             shape.collision_type, shape.friction = PILLAR_TYPE, 1.0
             space.add(shape)
             self._pillar_shapes.append(shape)
@@ -203,7 +233,8 @@ class SafetyGymEnv(gymnasium.Env):
         if "push_box" in layout:
             bx, by = layout["push_box"][0]
             half, mass = self.box_half, self.box_mass
-            body = pymunk.Body(mass, 7.25e-6 * mass / 1.28e-4 * (half / 0.2) ** 2)
+            # Izz 7.25e-6 for the Point's box (spec §4), scaled by mass and size squared
+            body = pymunk.Body(mass, 7.25e-6 * (mass / 1.28e-4) * (half / 0.2) ** 2)
             body.position, body.angle = (bx, by), float(rng.uniform(0.0, 2 * math.pi))
             shapes = [pymunk.Poly(body, poly) for poly in push_box_outline(half)]
             for shape in shapes:
@@ -420,7 +451,7 @@ class SafetyGymEnv(gymnasium.Env):
             goal_shape = self._button_shapes[self.goal_button]
             goal_met = any(shape is goal_shape for shape in touched)
         else:
-            goal_met = d_goal <= cfg.GOAL_SIZE
+            goal_met = d_goal <= self.goal_size
         if goal_met:
             reward += 1.0
         return reward, goal_met
@@ -622,7 +653,7 @@ class SafetyGymEnv(gymnasium.Env):
             r = cfg.VASE_HALF * _SQRT2
             out["vases"] = np.array([(*b.position, r) for b in self.vase_bodies])
         if self.pillars:
-            out["pillars"] = np.array([(x, y, cfg.PILLAR_RADIUS) for x, y in self.pillars])
+            out["pillars"] = np.array([(x, y, self.pillar_radius) for x, y in self.pillars])
         if self.gremlin_bodies:
             r = cfg.GREMLIN_HALF * _SQRT2
             out["gremlins"] = np.array([(x, y, r) for x, y in self.gremlin_xy])

@@ -69,7 +69,7 @@ def render_topdown(env: SafetyGymEnv, size: int = 256) -> np.ndarray:
         if k == env.goal_button:
             disc(draw, x, y, env.goal_size, None, COLOURS["goal"], 3)
     for x, y in env.pillars:
-        disc(draw, x, y, 0.2, COLOURS["pillars"])
+        disc(draw, x, y, env.pillar_radius, COLOURS["pillars"])
 
     def body_shapes(body: pymunk.Body, colour) -> None:
         for shape in body.shapes:
