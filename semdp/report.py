@@ -1,0 +1,140 @@
+"""``semdp-report SWEEP_DIR [--out DIR]``: tables and figures from a sweep (issue 8, SPEC §4.3).
+
+Finds every run directory below ``SWEEP_DIR`` (one holding ``metrics.json`` and/or
+``progress.csv``; see :mod:`semdp.reporting.runs` for the fields used), groups runs by method label
+(``metrics["label"]``, else ``metrics["algo"]``) and environment, and writes into ``--out``
+(default ``SWEEP_DIR/report``):
+
+* ``table.md`` -- Table 3.1 layout: rows environment x {reward, cost}, columns methods, cells
+  mean ± standard error over seeds of the final evaluation; then one line per failed or
+  unfinished run naming it and why;
+* ``curves_<env>.png`` -- episode return and cost vs env steps, one curve per method,
+  Savitzky-Golay smoothed, shaded ±1 standard error over seeds;
+* ``tradeoff_<env>.png`` -- Fig. B.1 (reward vs cost over ε') when runs carry ``tradeoff``.
+
+Example::
+
+    semdp-report outputs/multirun/2026-11-22_10-00-00 --out outputs/reference/semdp_push
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+from semdp.reporting.plots import method_colours, plot_tradeoff, plot_training_curves
+from semdp.reporting.runs import UNKNOWN, RunRecord, load_runs, mean_and_standard_error
+
+TABLE_NAME = "table.md"
+
+
+def format_cell(values: list[float], max_seeds: int, digits: int = 2) -> str:
+    """``mean ± SE`` (``–`` for the error of a single seed), with ``(n=k)`` if seeds are missing."""
+    if not values:
+        return "–"
+    mean, error = mean_and_standard_error(values)
+    text = f"{mean:.{digits}f} ± " + ("–" if math.isnan(error) else f"{error:.{digits}f}")
+    return text if len(values) == max_seeds else f"{text} (n={len(values)})"
+
+
+def build_table(runs: list[RunRecord], root: Path, digits: int = 2) -> str:
+    """Markdown of Table 3.1 (mean ± SE over seeds) plus the list of incomplete runs."""
+    usable = [run for run in runs if run.has_final_eval]
+    # Runs known only by their directory (no metrics.json, no config.yaml) get no column or row of
+    # their own; they are listed with the incomplete runs below.
+    named = [run for run in runs if run.has_final_eval or UNKNOWN not in (run.label, run.env)]
+    labels = sorted({run.label for run in named})
+    envs = sorted({run.env for run in named})
+    values: dict[tuple[str, str, str], list[float]] = defaultdict(list)
+    for run in usable:
+        values[(run.env, run.label, "reward")].append(float(run.eval_return))  # type: ignore[arg-type]
+        values[(run.env, run.label, "cost")].append(float(run.eval_cost))  # type: ignore[arg-type]
+    lines = [
+        f"# Results: {root}",
+        "",
+        "Final evaluation (`metrics.json` eval.return_mean / eval.cost_mean), mean ± standard "
+        "error over seeds; `(n=k)` marks cells with fewer seeds than the most complete method.",
+        "",
+        "| env | metric | " + " | ".join(labels) + " |",
+        "|---|---|" + "---|" * len(labels),
+    ]
+    for env in envs:
+        max_seeds = max((len(values[(env, label, "reward")]) for label in labels), default=0)
+        for metric in ("reward", "cost"):
+            cells = [
+                format_cell(values[(env, label, metric)], max_seeds, digits) for label in labels
+            ]
+            lines.append(f"| {env} | {metric} | " + " | ".join(cells) + " |")
+    lines += ["", f"Runs found: {len(runs)}; with a final evaluation: {len(usable)}.", ""]
+    incomplete = [run for run in runs if run.problems]
+    if incomplete:
+        lines += ["## Failed or unfinished runs", ""]
+        for run in incomplete:
+            where = run.path.relative_to(root) if run.path.is_relative_to(root) else run.path
+            name = f"{run.label} / {run.env}" + (
+                f" / seed {run.seed}" if run.seed is not None else ""
+            )
+            detail = "; ".join(run.problems)
+            if run.error:
+                detail += f"; error: {run.error}"
+            lines.append(f"- `{where}` ({name}): {detail}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _file_safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "env"
+
+
+def write_report(root: Path, out_dir: Path, digits: int = 2) -> list[Path]:
+    """Write ``table.md``, the curve PNGs and any trade-off PNGs; return the written paths.
+
+    Raises:
+        ValueError: if ``root`` is not a directory or holds no run directory.
+    """
+    root = Path(root).resolve()
+    out_dir = Path(out_dir).resolve()
+    runs = [run for run in load_runs(root) if not run.path.is_relative_to(out_dir)]
+    if not runs:
+        raise ValueError(f"no run directories (metrics.json or progress.csv) found below {root}")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = [out_dir / TABLE_NAME]
+    written[0].write_text(build_table(runs, root, digits))
+    colours = method_colours(runs)
+    for env in sorted({run.env for run in runs}):
+        curves = out_dir / f"curves_{_file_safe(env)}.png"
+        if plot_training_curves(runs, env, curves, colours):
+            written.append(curves)
+        tradeoff = out_dir / f"tradeoff_{_file_safe(env)}.png"
+        if plot_tradeoff(runs, env, tradeoff, colours):
+            written.append(tradeoff)
+    return written
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Command-line entry point (``semdp-report``)."""
+    parser = argparse.ArgumentParser(
+        prog="semdp-report",
+        description="Tables (mean ± SE over seeds), training curves and the ε' trade-off "
+        "scatter from a sweep's run directories.",
+    )
+    parser.add_argument("sweep_dir", type=Path, help="sweep or parent directory of run dirs")
+    parser.add_argument("--out", type=Path, default=None, help="output dir (default SWEEP/report)")
+    parser.add_argument("--digits", type=int, default=2, help="decimals in table cells")
+    args = parser.parse_args(argv)
+    out_dir = args.out if args.out is not None else args.sweep_dir / "report"
+    try:
+        written = write_report(args.sweep_dir, out_dir, args.digits)
+    except ValueError as exc:
+        sys.exit(f"semdp-report: {exc}")
+    print(written[0].read_text())
+    for path in written:
+        print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,239 @@
+"""`semdp-report` on synthetic sweeps: hand-computed mean ± standard error as the oracle."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from semdp.report import TABLE_NAME, build_table, format_cell, main, write_report
+from semdp.reporting.plots import aggregate_curves, smooth
+from semdp.reporting.runs import find_run_dirs, load_run, load_runs, mean_and_standard_error
+
+HEADER = [
+    "epoch", "env_steps", "wall_time_s", "fps", "ep_return", "ep_cost", "ep_length",
+    "lagrange_multiplier", "cost_threshold", "eval_return", "eval_cost",
+]  # fmt: skip
+
+
+def _write_run(
+    path: Path,
+    *,
+    algo: str,
+    env: str,
+    seed: int,
+    eval_return: float | None = None,
+    eval_cost: float | None = None,
+    status: str = "completed",
+    rows: int = 30,
+    offset: float = 0.0,
+    metrics: bool = True,
+    extra: dict[str, Any] | None = None,
+) -> Path:
+    path.mkdir(parents=True)
+    (path / ".hydra").mkdir()
+    with (path / "progress.csv").open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(HEADER)
+        for epoch in range(1, rows + 1):
+            steps = 1000 * epoch
+            writer.writerow(
+                [epoch, steps, epoch * 0.1, 1e4, 0.001 * steps + offset, 5.0 + offset, 1000,
+                 0.1, 25.0, "", ""]
+            )  # fmt: skip
+    if metrics:
+        content: dict[str, Any] = {
+            "status": status,
+            "error": "RuntimeError: boom" if status == "failed" else None,
+            "algo": algo,
+            "env": env,
+            "seed": seed,
+            "env_steps": 1000 * rows,
+            "wall_time_s": 1.0,
+            "eval": None
+            if eval_return is None
+            else {
+                "episodes": 50,
+                "return_mean": eval_return,
+                "return_std": 1.0,
+                "cost_mean": eval_cost,
+                "cost_std": 0.0,
+                "success_rate": None,
+            },
+        }
+        content.update(extra or {})
+        (path / "metrics.json").write_text(json.dumps(content))
+    return path
+
+
+@pytest.fixture
+def sweep(tmp_path: Path) -> Path:
+    root = tmp_path / "sweep"
+    # env push1: semdp returns 5, 6, 7 (mean 6, SE 1/sqrt(3)), costs 0; ppo_lag returns 1, 3
+    # (mean 2, SE 1), costs 4, 8 (mean 6, SE 2).
+    for seed, ret in enumerate((5.0, 6.0, 7.0)):
+        _write_run(root / f"{seed}", algo="semdp", env="push1", seed=seed, eval_return=ret,
+                   eval_cost=0.0, offset=float(seed))  # fmt: skip
+    for seed, (ret, cost) in enumerate(((1.0, 4.0), (3.0, 8.0))):
+        _write_run(root / f"{3 + seed}", algo="ppo_lag", env="push1", seed=seed, eval_return=ret,
+                   eval_cost=cost)  # fmt: skip
+    # env goal1: one seed of a labelled variant (label beats algo).
+    _write_run(root / "5", algo="semdp", env="goal1", seed=0, eval_return=2.5, eval_cost=0.5,
+               extra={"label": "Ours w/ gt"})  # fmt: skip
+    # incomplete runs of all kinds
+    _write_run(root / "6", algo="ppo_lag", env="push1", seed=2, status="failed", rows=3)
+    _write_run(root / "7", algo="ppo_lag", env="push1", seed=3, status="running", rows=5)
+    _write_run(root / "8", algo="cpo", env="push1", seed=0, metrics=False, rows=4)
+    _write_run(root / "9", algo="cpo", env="push1", seed=1, eval_return=1.0, eval_cost=1.0,
+               rows=0)  # fmt: skip
+    (root / "10" / ".hydra").mkdir(parents=True)  # a job that never wrote anything
+    return root
+
+
+def test_mean_and_standard_error_matches_hand_computation() -> None:
+    mean, error = mean_and_standard_error([5.0, 6.0, 7.0])
+    assert mean == 6.0 and error == pytest.approx(1 / math.sqrt(3))
+    assert mean_and_standard_error([1.0, 3.0]) == (2.0, pytest.approx(1.0))
+    single = mean_and_standard_error([4.0])
+    assert single[0] == 4.0 and math.isnan(single[1])
+    with pytest.raises(ValueError):
+        mean_and_standard_error([])
+
+
+def test_format_cell_marks_missing_seeds() -> None:
+    assert format_cell([5.0, 6.0, 7.0], max_seeds=3) == "6.00 ± 0.58"
+    assert format_cell([1.0, 3.0], max_seeds=3) == "2.00 ± 1.00 (n=2)"
+    assert format_cell([4.0], max_seeds=1) == "4.00 ± –"
+    assert format_cell([], max_seeds=3) == "–"
+
+
+def test_find_run_dirs_includes_incomplete_and_never_started(sweep: Path) -> None:
+    found = [path.name for path in find_run_dirs(sweep)]
+    assert sorted(found, key=int) == [str(i) for i in range(11)]
+
+
+def test_load_run_reports_each_kind_of_incomplete_run(sweep: Path) -> None:
+    failed = load_run(sweep / "6")
+    assert failed.status == "failed" and failed.error == "RuntimeError: boom"
+    assert not failed.has_final_eval and "status failed" in failed.problems
+    assert load_run(sweep / "7").problems[0] == "status running"
+    no_metrics = load_run(sweep / "8")
+    assert no_metrics.status == "no metrics.json" and no_metrics.curves["env_steps"].size == 4
+    empty_csv = load_run(sweep / "9")
+    assert empty_csv.has_final_eval and "empty progress.csv" in empty_csv.problems
+    assert load_run(sweep / "5").label == "Ours w/ gt"
+    never = load_run(sweep / "10")
+    assert set(never.problems) == {"no metrics.json", "no progress.csv"}
+
+
+def test_table_has_table_3_1_layout_with_mean_and_standard_error(sweep: Path) -> None:
+    runs = load_runs(sweep)
+    table = build_table(runs, sweep)
+    lines = table.splitlines()
+    header = next(line for line in lines if line.startswith("| env |"))
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    assert columns == ["env", "metric", "Ours w/ gt", "cpo", "ppo_lag", "semdp"]
+    rows = {
+        tuple(c.strip() for c in line.strip("|").split("|")[:2]): [
+            c.strip() for c in line.strip("|").split("|")[2:]
+        ]
+        for line in lines
+        if line.startswith("| push1") or line.startswith("| goal1")
+    }
+    assert rows[("push1", "reward")] == ["–", "1.00 ± – (n=1)", "2.00 ± 1.00 (n=2)", "6.00 ± 0.58"]
+    assert rows[("push1", "cost")] == ["–", "1.00 ± – (n=1)", "6.00 ± 2.00 (n=2)", "0.00 ± 0.00"]
+    assert set(rows) == {(env, m) for env in ("push1", "goal1") for m in ("reward", "cost")}
+    assert rows[("goal1", "reward")][0] == "2.50 ± –"
+    # every incomplete run is named with its reason
+    for name, reason in [("6", "status failed"), ("7", "status running"),
+                         ("8", "no metrics.json"), ("9", "empty progress.csv"),
+                         ("10", "no metrics.json")]:  # fmt: skip
+        line = next(line for line in lines if line.startswith(f"- `{name}`"))
+        assert reason in line
+    assert "RuntimeError: boom" in table
+
+
+def test_smooth_adapts_window_and_preserves_quadratics() -> None:
+    x = np.arange(40, dtype=float)
+    quadratic = 0.5 * x**2 - x + 3
+    np.testing.assert_allclose(smooth(quadratic), quadratic, atol=1e-8)
+    short = np.array([1.0, 5.0, 2.0])
+    np.testing.assert_array_equal(smooth(short), short)  # too short for polyorder 2: unchanged
+    noisy = np.tile([0.0, 1.0], 20)
+    assert smooth(noisy).std() < noisy.std() / 3
+
+
+def test_aggregate_curves_mean_and_standard_error_oracle() -> None:
+    steps = np.linspace(0.0, 100.0, 51)
+    grid, mean, error = aggregate_curves([(steps, steps), (steps, steps + 2.0)], points=11)
+    np.testing.assert_allclose(grid, np.linspace(0.0, 100.0, 11))
+    np.testing.assert_allclose(mean, grid + 1.0, atol=1e-8)
+    np.testing.assert_allclose(error, 1.0, atol=1e-8)  # std([a, a+2], ddof=1)/sqrt(2) = 1
+
+
+def test_aggregate_curves_uses_only_seeds_covering_each_step() -> None:
+    long_steps = np.linspace(0.0, 100.0, 51)
+    short_steps = np.linspace(0.0, 50.0, 26)
+    grid, mean, error = aggregate_curves(
+        [(long_steps, np.full(51, 4.0)), (short_steps, np.full(26, 2.0))], points=11
+    )
+    beyond = grid > 50.0
+    np.testing.assert_allclose(mean[beyond], 4.0)
+    np.testing.assert_allclose(error[beyond], 0.0)
+    np.testing.assert_allclose(mean[~beyond], 3.0)
+
+
+def test_write_report_writes_table_curves_and_tradeoff(tmp_path: Path) -> None:
+    root = tmp_path / "tradeoff_sweep"
+    for seed in range(2):
+        points = [
+            {"clearance": eps, "return_mean": 5.0 - eps + seed, "cost_mean": 1.0 - eps}
+            for eps in (0.1, 0.3, 0.5)
+        ]
+        _write_run(root / f"ours_{seed}", algo="semdp", env="point_push1", seed=seed,
+                   eval_return=5.0, eval_cost=0.0, extra={"tradeoff": points})  # fmt: skip
+        _write_run(root / f"cpo_{seed}", algo="cpo", env="point_push1", seed=seed,
+                   eval_return=3.0, eval_cost=2.0)  # fmt: skip
+    written = write_report(root, tmp_path / "report")
+    names = sorted(path.name for path in written)
+    assert names == ["curves_point_push1.png", "table.md", "tradeoff_point_push1.png"]
+    for path in written:
+        if path.suffix == ".png":
+            assert Image.open(path).size[0] > 500
+
+
+def test_cli_writes_default_out_dir_and_tolerates_incomplete_runs(
+    sweep: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    main([str(sweep)])
+    out = sweep / "report"
+    assert (out / TABLE_NAME).is_file()
+    assert (out / "curves_push1.png").is_file() and (out / "curves_goal1.png").is_file()
+    assert not list(out.glob("tradeoff_*"))  # no run carries trade-off points
+    printed = capsys.readouterr().out
+    assert "Failed or unfinished runs" in printed
+    main([str(sweep)])  # a second run ignores its own report directory
+    assert "Runs found: 11" in (out / TABLE_NAME).read_text()
+
+
+def test_cli_without_runs_exits_with_message(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit, match="no run directories"):
+        main([str(tmp_path)])
+    with pytest.raises(SystemExit, match="not a directory"):
+        main([str(tmp_path / "missing")])
+
+
+def test_training_curves_skip_failed_runs(tmp_path: Path) -> None:
+    from semdp.reporting.plots import plot_training_curves
+
+    failed = load_run(_write_run(tmp_path / "f", algo="ppo", env="e", seed=0, status="failed"))
+    running = load_run(_write_run(tmp_path / "r", algo="ppo", env="e", seed=1, status="running"))
+    assert not plot_training_curves([failed], "e", tmp_path / "failed.png")
+    assert not (tmp_path / "failed.png").exists()
+    assert plot_training_curves([failed, running], "e", tmp_path / "running.png")
