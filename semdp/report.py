@@ -41,13 +41,28 @@ def format_cell(values: list[float], max_seeds: int, digits: int = 2) -> str:
     return text if len(values) == max_seeds else f"{text} (n={len(values)})"
 
 
-def build_table(runs: list[RunRecord], root: Path, digits: int = 2) -> str:
-    """Markdown of Table 3.1 (mean ± SE over seeds) plus the list of incomplete runs."""
+def order_labels(labels: set[str], order: list[str] | None = None) -> list[str]:
+    """``order`` first (those present), then the remaining labels alphabetically."""
+    first = [label for label in (order or []) if label in labels]
+    return first + sorted(labels - set(first))
+
+
+def build_table(
+    runs: list[RunRecord], root: Path, digits: int = 2, order: list[str] | None = None
+) -> str:
+    """Markdown of Table 3.1 (mean ± SE over seeds) plus the list of incomplete runs.
+
+    Args:
+        runs: loaded run directories.
+        root: the sweep directory (run paths are shown relative to it).
+        digits: decimals in the cells.
+        order: method labels to put first, in this order (Table 3.1: SEMDP, CPO, ...).
+    """
     usable = [run for run in runs if run.has_final_eval]
     # Runs known only by their directory (no metrics.json, no config.yaml) get no column or row of
     # their own; they are listed with the incomplete runs below.
     named = [run for run in runs if run.has_final_eval or UNKNOWN not in (run.label, run.env)]
-    labels = sorted({run.label for run in named})
+    labels = order_labels({run.label for run in named}, order)
     envs = sorted({run.env for run in named})
     values: dict[tuple[str, str, str], list[float]] = defaultdict(list)
     for run in usable:
@@ -90,7 +105,9 @@ def _file_safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "env"
 
 
-def write_report(root: Path, out_dir: Path, digits: int = 2) -> list[Path]:
+def write_report(
+    root: Path, out_dir: Path, digits: int = 2, order: list[str] | None = None
+) -> list[Path]:
     """Write ``table.md``, the curve PNGs and any trade-off PNGs; return the written paths.
 
     Raises:
@@ -103,7 +120,7 @@ def write_report(root: Path, out_dir: Path, digits: int = 2) -> list[Path]:
         raise ValueError(f"no run directories (metrics.json or progress.csv) found below {root}")
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / TABLE_NAME]
-    written[0].write_text(build_table(runs, root, digits))
+    written[0].write_text(build_table(runs, root, digits, order))
     colours = method_colours(runs)
     for env in sorted({run.env for run in runs}):
         curves = out_dir / f"curves_{_file_safe(env)}.png"
@@ -125,10 +142,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("sweep_dir", type=Path, help="sweep or parent directory of run dirs")
     parser.add_argument("--out", type=Path, default=None, help="output dir (default SWEEP/report)")
     parser.add_argument("--digits", type=int, default=2, help="decimals in table cells")
+    parser.add_argument(
+        "--order", default="", help="comma-separated method labels to put first (table columns)"
+    )
     args = parser.parse_args(argv)
     out_dir = args.out if args.out is not None else args.sweep_dir / "report"
     try:
-        written = write_report(args.sweep_dir, out_dir, args.digits)
+        order = [label.strip() for label in args.order.split(",") if label.strip()]
+        written = write_report(args.sweep_dir, out_dir, args.digits, order)
     except ValueError as exc:
         sys.exit(f"semdp-report: {exc}")
     print(written[0].read_text())

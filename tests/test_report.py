@@ -222,6 +222,18 @@ def test_cli_writes_default_out_dir_and_tolerates_incomplete_runs(
     assert "Runs found: 11" in (out / TABLE_NAME).read_text()
 
 
+def test_cli_order_puts_named_methods_first(sweep: Path, tmp_path: Path) -> None:
+    main([str(sweep), "--out", str(tmp_path / "ordered"), "--order", "semdp, ppo_lag,absent"])
+    header = next(
+        line
+        for line in (tmp_path / "ordered" / TABLE_NAME).read_text().splitlines()
+        if line.startswith("| env |")
+    )
+    assert [c.strip() for c in header.strip("|").split("|")][2:] == [
+        "semdp", "ppo_lag", "Ours w/ gt", "cpo"
+    ]  # fmt: skip
+
+
 def test_cli_without_runs_exits_with_message(tmp_path: Path) -> None:
     with pytest.raises(SystemExit, match="no run directories"):
         main([str(tmp_path)])
