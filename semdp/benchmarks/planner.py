@@ -60,7 +60,8 @@ def _variant_kwargs(name: str) -> dict[str, object]:
 def main(argv: list[str]) -> None:
     """Run the suite and print the table."""
     args = _parse(argv)
-    names = [s.strip() for s in args.get("backends", "[ipopt,lm,lm_adaptive,scp]").strip("[]").split(",")]
+    listed = args.get("backends", "[ipopt,lm,lm_adaptive,scp]").strip("[]")
+    names = [s.strip() for s in listed.split(",")]
     n = int(args.get("n", 500))
     seed = int(args.get("seed", 0))
     batch = int(args.get("batch", 16))
@@ -98,7 +99,9 @@ def main(argv: list[str]) -> None:
                 chunk = problems[lo : lo + size]
                 tic = time.perf_counter()
                 out_chunk = planner.plan_batch(
-                    [p.start for p in chunk], [p.subgoal for p in chunk], [p.obstacles for p in chunk]
+                    [p.start for p in chunk],
+                    [p.subgoal for p in chunk],
+                    [p.obstacles for p in chunk],
                 )
                 times[lo : lo + len(chunk)] = (time.perf_counter() - tic) / len(chunk)
                 results.extend(out_chunk)
@@ -147,7 +150,8 @@ def main(argv: list[str]) -> None:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    print(f"planner benchmark: {n} problems, seed {seed}, {platform.processor() or platform.machine()}")
+    machine = platform.processor() or platform.machine()
+    print(f"planner benchmark: {n} problems, seed {seed}, {machine}")
     header = (
         "| variant | median ms | p95 ms | max ms | feasible % | fallback % | reached % "
         "| reached where IPOPT reached % | obj gap to IPOPT (median / mean) | iters (median) "
@@ -160,7 +164,8 @@ def main(argv: list[str]) -> None:
             f"| {row['variant']} | {row['median_ms']:.2f} | {row['p95_ms']:.2f} | "
             f"{row['max_ms']:.1f} | {row['feasible_pct']:.1f} | {row['fallback_pct']:.1f} | "
             f"{row['reached_pct']:.1f} | {row['reached_vs_ipopt_pct']:.1f} | "
-            f"{row['obj_gap_median']:.2g} / {row['obj_gap_mean']:.2g} | {row['iters_median']:.0f} | "
+            f"{row['obj_gap_median']:.2g} / {row['obj_gap_mean']:.2g} | "
+            f"{row['iters_median']:.0f} | "
             f"{row['speedup_vs_theseus']:.0f} |"
         )
     print(f"wrote {out / 'planner_summary.csv'} and {out / 'planner_results.csv'}")

@@ -46,5 +46,8 @@ def clearance_margins(
     points: np.ndarray, centres: np.ndarray, clearances: np.ndarray, *, continuous: bool
 ) -> np.ndarray:
     """Signed margins ``distance - clearance`` per (point or segment, obstacle)."""
-    distances = segment_distances(points, centres) if continuous else point_distances(points, centres)
+    if continuous:
+        distances = segment_distances(points, centres)
+    else:
+        distances = point_distances(points, centres)
     return distances - clearances[None, :]

@@ -60,7 +60,10 @@ def build_ipopt(
     continuous: bool,
     ipopt_options: dict[str, object],
 ) -> IpoptProgram:
-    """Build the parametric NLP; ``p = [g (2), centres (2 n_slots), c (n_slots), w_esc (n_slots)]``."""
+    """Build the parametric NLP.
+
+    ``p = [g (2), centres (2 n_slots), c (n_slots), w_esc (n_slots)]``.
+    """
     n = prior.n_waypoints - 1
     z = ca.SX.sym("z", prior.n_var)
     p = ca.SX.sym("p", 2 + 4 * n_slots)
@@ -186,7 +189,8 @@ def solve_ipopt(
             a = positions[:-1]
             ab = positions[1:] - a
             ao = centres[j] - a
-            t = np.clip(np.einsum("nk,nk->n", ao, ab) / (np.einsum("nk,nk->n", ab, ab) + 1e-12), 0, 1)
+            length_sq = np.einsum("nk,nk->n", ab, ab) + 1e-12
+            t = np.clip(np.einsum("nk,nk->n", ao, ab) / length_sq, 0, 1)
             d = a + t[:, None] * ab - centres[j]
             norm = np.hypot(d[:, 0], d[:, 1])
             normals[j] = np.where(norm[:, None] > 1e-9, d / np.maximum(norm, 1e-9)[:, None], 0.0)

@@ -51,21 +51,24 @@ def build_lm_functions(
 ) -> tuple[ca.Function, ca.Function]:
     """CasADi functions ``step(z, p) -> (F, J^T r, J^T J)`` and ``cost(z, p) -> F``.
 
-    ``p = [g (2), centres (2 n_slots, row-major), clearances (n_slots), lambda]``; a clearance of
-    0 disables its slot (the hinge is then identically zero).
+    ``p = [g (2), centres (2 n_slots, row-major), clearances (n_slots), lambda, lambda_budget]``;
+    a clearance of 0 disables its slot (the hinge is then identically zero). The solve uses
+    ``lambda_budget = lambda`` (one multiplier, App. B.2.3); a smaller value only serves to rank
+    initial guesses.
     """
     n = prior.n_waypoints - 1
     z = ca.SX.sym("z", prior.n_var)
-    p = ca.SX.sym("p", 3 + 3 * n_slots)
+    p = ca.SX.sym("p", 4 + 3 * n_slots)
     goal = p[0:2]
     lam = p[2 + 3 * n_slots]
+    lam_budget = p[3 + 3 * n_slots]
     positions = [ca.vertcat(0.0, 0.0)] + [z[2 * i : 2 * i + 2] for i in range(n)]
     smooth_res = ca.mtimes(ca.DM(prior.W), z)
     h = ca.sumsqr(smooth_res)
     residuals = [
         positions[-1] - goal,
         np.sqrt(weights.smooth_regulariser) * smooth_res,
-        ca.sqrt(lam * weights.smooth_budget)
+        ca.sqrt(lam_budget * weights.smooth_budget)
         * ca.fmax(0.0, ca.sqrt(h + _DISTANCE_EPS) / np.sqrt(weights.sigma_smooth) - 1.0),
     ]
     obstacle_scale = ca.sqrt(lam * weights.obstacle)

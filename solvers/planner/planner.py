@@ -38,6 +38,8 @@ logger = logging.getLogger(__name__)
 
 #: Tolerance of the certificate (metres): a plan passes when every distance >= required - this.
 CERTIFICATE_TOLERANCE = 1e-9
+#: Budget weight (relative to lambda) used only to rank LM's initial guesses.
+CANDIDATE_BUDGET_FACTOR = 0.01
 
 
 @dataclass
@@ -46,12 +48,13 @@ class _BackendPlan:
     status: str
     iterations: int
     multiplier: float = float("nan")
+    failed: bool = False
 
 
 class _LMKernel:
     """CasADi step/cost functions of one slot count, evaluated through zero-copy buffers."""
 
-    def __init__(self, step, cost, n_var: int, n_param: int) -> None:  # noqa: ANN001
+    def __init__(self, step, cost, n_var: int, n_param: int) -> None:
         self.step = step
         self.cost = cost
         self.n_var = n_var
@@ -92,7 +95,7 @@ class _LMKernel:
 class _MappedKernel:
     """``_LMKernel`` for B problems at once: one CasADi call evaluates all of them."""
 
-    def __init__(self, step, cost, n_var: int, n_param: int, batch: int) -> None:  # noqa: ANN001
+    def __init__(self, step, cost, n_var: int, n_param: int, batch: int) -> None:
         self.n_var = n_var
         # CasADi is column-major: a (B, n) C-order array is the n x B matrix of B columns.
         self.z = np.zeros((batch, n_var))
@@ -143,7 +146,7 @@ def levenberg_marquardt(
     cost = float(kernel.f[0])
     mu = damping
     done = 0
-    for done in range(1, iterations + 1):
+    for done in range(1, iterations + 1):  # noqa: B007 (the count is returned)
         hess = kernel.h
         diag = np.diag(hess)
         damped = hess.copy()
@@ -353,7 +356,7 @@ class SafeTrajectoryPlanner:
                 plan = self._solve_scp(prep, warm)
         except (RuntimeError, np.linalg.LinAlgError) as error:  # solver crash -> fallback
             logger.warning("planner backend %s failed: %s", self.backend, error)
-            plan = _BackendPlan(np.zeros(self.prior.n_var), f"error: {error}", 0)
+            plan = _BackendPlan(np.zeros(self.prior.n_var), f"error: {error}", 0, failed=True)
         result = self._certify(prep, plan, time.perf_counter() - tic)
         self._previous = (prep.start.copy(), prep.start + prep.goal, result.waypoints.copy())
         return result
@@ -444,23 +447,28 @@ class SafeTrajectoryPlanner:
             step, cost = build_lm_functions(
                 self.prior, self._lm_weights, n_slots, continuous=self.continuous
             )
-            self._lm_kernels[n_slots] = _LMKernel(step, cost, self.prior.n_var, 3 + 3 * n_slots)
+            self._lm_kernels[n_slots] = _LMKernel(step, cost, self.prior.n_var, 4 + 3 * n_slots)
         return self._lm_kernels[n_slots]
 
-    def _lm_params(self, prep: PreparedProblem, n_slots: int, lam: float) -> np.ndarray:
+    def _lm_params(
+        self, prep: PreparedProblem, n_slots: int, lam: float, budget_factor: float = 1.0
+    ) -> np.ndarray:
         sel = prep.selected
         m = len(sel)
         centres = np.zeros((n_slots, 2))
         centres[:m] = prep.centres[sel]
         radii = np.zeros(n_slots)
         radii[:m] = prep.clearances[sel] + self.lm_margin
-        return np.concatenate([prep.goal, centres.ravel(), radii, [lam]])
+        return np.concatenate([prep.goal, centres.ravel(), radii, [lam, lam * budget_factor]])
 
     def _solve_lm(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
         kernel = self._lm_kernel(bucket_size(len(prep.selected), self.max_obstacles))
-        n_slots = (len(kernel.p) - 3) // 3
+        n_slots = (len(kernel.p) - 4) // 3
         lam = self.lm_lambda_max if prep.escape_mode else self.lm_lambda
-        kernel.p[:] = self._lm_params(prep, n_slots, lam)
+        # rank the initial guesses by goal distance and clearance, barely by the budget: LM
+        # repairs a budget overrun quickly, while a stationary start cannot pick a side around
+        # an obstacle that sits exactly on the straight line
+        kernel.p[:] = self._lm_params(prep, n_slots, lam, CANDIDATE_BUDGET_FACTOR)
         z = min(self._lm_candidates(prep, warm), key=kernel.cost_at)
         total = 0
         while True:
@@ -524,7 +532,10 @@ class SafeTrajectoryPlanner:
         kernel = self._lm_kernel(n_slots).mapped(batch)
         nv = self.prior.n_var
         lams = np.array([self.lm_lambda_max if p.escape_mode else self.lm_lambda for p in preps])
-        kernel.p[:] = [self._lm_params(p, n_slots, lam) for p, lam in zip(preps, lams, strict=True)]
+        kernel.p[:] = [
+            self._lm_params(p, n_slots, lam, CANDIDATE_BUDGET_FACTOR)
+            for p, lam in zip(preps, lams, strict=True)
+        ]
         candidate_sets = [self._lm_candidates(p, None) for p in preps]
         zs = np.stack([c[0] for c in candidate_sets])
         best = kernel.costs_at(zs)
@@ -534,6 +545,7 @@ class SafeTrajectoryPlanner:
             better = costs < best
             zs[better] = trial[better]
             best[better] = costs[better]
+        kernel.p[:] = [self._lm_params(p, n_slots, lam) for p, lam in zip(preps, lams, strict=True)]
         totals = np.zeros(batch, dtype=int)
         active = np.ones(batch, dtype=bool)
         diag_index = np.arange(nv)
@@ -604,7 +616,8 @@ class SafeTrajectoryPlanner:
         key = (n_slots, kind)
         if key not in self._ipopt:
             options = dict(self.ipopt_options)
-            options["max_iter"] = self.ipopt_first_max_iter if kind == "first" else self.ipopt_max_iter
+            first = kind == "first"
+            options["max_iter"] = self.ipopt_first_max_iter if first else self.ipopt_max_iter
             self._ipopt[key] = build_ipopt(
                 self.prior,
                 n_slots,
@@ -710,7 +723,7 @@ class SafeTrajectoryPlanner:
         return bool(np.all(distances >= need[None, :]))
 
     def _passes(self, prep: PreparedProblem, z: np.ndarray) -> bool:
-        """The certificate: every waypoint (segment) keeps the required distance to ALL obstacles."""
+        """The certificate: every waypoint (segment) keeps its required distance to all obstacles."""
         if not np.all(np.isfinite(z)):
             return False
         if len(prep.centres) == 0:
@@ -724,7 +737,11 @@ class SafeTrajectoryPlanner:
         z = plan.z
         status = plan.status
         fallback = False
-        if not self._passes(prep, z):
+        if plan.failed:
+            z = np.zeros(self.prior.n_var)
+            fallback = True
+            status = f"fallback: {plan.status}"
+        elif not self._passes(prep, z):
             z = np.zeros(self.prior.n_var)
             fallback = True
             status = f"fallback: {plan.status}: plan failed the clearance certificate"

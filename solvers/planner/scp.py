@@ -110,9 +110,9 @@ class ScpProgram:
         self.lower = np.full(self.n_rows, -np.inf)
         self.upper = np.full(self.n_rows, np.inf)
         self.solver = osqp.OSQP()
-        self.solver.setup(
-            self.P, np.zeros(nv), self.A, self.lower, self.upper, **(settings or OSQP_SETTINGS)
-        )
+        options = dict(settings or OSQP_SETTINGS)
+        self._rho = float(options.setdefault("rho", 0.1))
+        self.solver.setup(self.P, np.zeros(nv), self.A, self.lower, self.upper, **options)
 
     def _normals(
         self, positions: np.ndarray, centres: np.ndarray
@@ -183,6 +183,10 @@ class ScpProgram:
             return float(end @ end + smooth_regulariser * (r @ r))
 
         current = objective(z)
+        # every solve starts from the same state (duals and OSQP's adaptive step size), so a
+        # result does not depend on the problems solved before
+        self._dual = np.zeros(self.n_rows)
+        self.solver.update_settings(rho=self._rho)
         exact_need = need - 0.5 * margin
         status = "max_iter"
         converged = False
@@ -191,7 +195,7 @@ class ScpProgram:
         upper = self.upper
         values = self.values
         base = nv + 1
-        for iterations in range(1, max_iterations + 1):
+        for iterations in range(1, max_iterations + 1):  # noqa: B007 (the count is returned)
             positions = np.zeros((n + 1, 2))
             positions[1:] = z[: 2 * n].reshape(n, 2)
             residual = W @ z
@@ -228,11 +232,12 @@ class ScpProgram:
             values[nv : 2 * nv] /= scale_row
             upper[nv] /= scale_row
             self.solver.update(Ax=values[self.perm], l=lower, u=upper)
-            self.solver.warm_start(x=z)
-            result = self.solver.solve()
+            self.solver.warm_start(x=z, y=self._dual)
+            result = self.solver.solve(raise_error=False)
             if result.x is None or not np.all(np.isfinite(result.x)):
                 status = f"qp_{result.info.status}"
                 break
+            self._dual = result.y
             step = result.x - z
             # exact budget: h(z + t step) = a t^2 + b t + h
             w_step = W @ step

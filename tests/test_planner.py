@@ -1,0 +1,294 @@
+"""Safe trajectory planner (SPEC §2.2, issue 3): planted solutions, the safety property, escape
+mode, fallback, bad inputs, batch, configs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from solvers.planner import SafeTrajectoryPlanner, random_problems
+from solvers.planner.geometry import point_distances, segment_distances
+from solvers.planner.problem import build_gp_prior
+
+BACKENDS = ["ipopt", "lm", "scp"]
+EPS = 0.5
+CONF_PLANNER = Path(__file__).resolve().parents[1] / "conf" / "planner"
+
+
+@pytest.fixture(scope="module")
+def planners() -> dict[tuple[str, bool], SafeTrajectoryPlanner]:
+    """One planner per (backend, continuous); LM in the adaptive (evaluation) mode."""
+    return {
+        (backend, continuous): SafeTrajectoryPlanner(
+            backend=backend, continuous=continuous, lm_adaptive=True
+        )
+        for backend in BACKENDS
+        for continuous in (False, True)
+    }
+
+
+def _sampled_segment_clearance(waypoints: np.ndarray, obstacles: np.ndarray) -> float:
+    """Independent oracle: distance to obstacle surfaces sampled densely along the polyline."""
+    t = np.linspace(0.0, 1.0, 201)[None, :, None]
+    points = (waypoints[:-1, None, :] * (1 - t) + waypoints[1:, None, :] * t).reshape(-1, 2)
+    radii = obstacles[:, 2] if obstacles.shape[1] == 3 else np.zeros(len(obstacles))
+    diff = points[:, None, :] - obstacles[None, :, :2]
+    return float((np.sqrt((diff**2).sum(-1)) - radii[None, :]).min())
+
+
+def _check_property(planner: SafeTrajectoryPlanner, problems: list) -> None:
+    for k, problem in enumerate(problems):
+        result = planner.plan(problem.start, problem.subgoal, problem.obstacles, warm_start=False)
+        assert not result.escape_mode
+        assert result.feasible, (k, result.status)
+        np.testing.assert_allclose(result.waypoints[0], problem.start, atol=1e-12)
+        if len(problem.obstacles):
+            obstacles = problem.obstacles
+            radii = obstacles[:, 2] if obstacles.shape[1] == 3 else 0.0
+            independent = point_distances(result.waypoints, obstacles[:, :2]) - radii
+            assert independent.min() >= EPS - 1e-6, (k, result.status, independent.min())
+            assert result.min_clearance == pytest.approx(independent.min(), abs=1e-12)
+            if planner.continuous:
+                assert result.min_clearance_continuous >= EPS - 1e-6, (k, result.status)
+                sampled = _sampled_segment_clearance(result.waypoints, obstacles)
+                assert sampled >= EPS - 1e-6, (k, result.status, sampled)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("subgoal", [(2.0, 0.0), (2.0, 2.0), (-1.5, 0.7), (0.0, -2.0)])
+def test_planner_reaches_subgoal_in_open_space(planners, backend: str, subgoal) -> None:
+    start = np.array([0.3, -0.2])
+    goal = start + np.array(subgoal)
+    result = planners[(backend, False)].plan(start, goal, [])
+    assert np.linalg.norm(result.waypoints[-1] - goal) < 1e-3
+    assert result.reached_subgoal and result.feasible and not result.fallback
+    assert result.min_clearance == np.inf
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("continuous", [False, True])
+def test_planner_bends_around_obstacle_on_straight_line(planners, backend, continuous) -> None:
+    planner = planners[(backend, continuous)]
+    result = planner.plan([0.0, 0.0], [2.0, 0.0], [[1.0, 0.0]])
+    assert not result.fallback
+    assert result.min_clearance >= EPS - 1e-6
+    if continuous:
+        assert result.min_clearance_continuous >= EPS - 1e-6
+    # it goes around (one side), not stopping in front of the obstacle
+    assert np.abs(result.waypoints[:, 1]).max() > 0.45
+    assert np.linalg.norm(result.waypoints[-1] - [2.0, 0.0]) < 0.05
+    assert np.all(np.sign(result.waypoints[1:, 1]) == np.sign(result.waypoints[15, 1]))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("continuous", [False, True])
+def test_planner_property_every_waypoint_keeps_clearance(planners, backend, continuous) -> None:
+    problems = random_problems(60, seed=11) + random_problems(40, seed=12, radius_share=1.0)
+    _check_property(planners[(backend, continuous)], problems)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("continuous", [False, True])
+def test_planner_property_every_waypoint_keeps_clearance_1000(planners, backend, continuous):
+    problems = random_problems(700, seed=100) + random_problems(300, seed=101, radius_share=1.0)
+    _check_property(planners[(backend, continuous)], problems)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_planner_fixed_lambda_lm_is_also_safe(backend) -> None:
+    planner = SafeTrajectoryPlanner(backend=backend, lm_adaptive=False)
+    _check_property(planner, random_problems(40, seed=21))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_planner_escape_mode_does_not_get_closer(planners, backend) -> None:
+    start = np.array([0.0, 0.0])
+    inside, far = np.array([0.3, 0.1]), np.array([1.5, 1.5])
+    result = planners[(backend, False)].plan(start, [2.0, 0.0], [inside, far])
+    assert result.escape_mode and not result.feasible
+    start_distance = np.linalg.norm(start - inside)
+    distances = np.linalg.norm(result.waypoints - inside, axis=1)
+    assert distances.min() >= start_distance - 1e-6
+    assert np.linalg.norm(result.waypoints - far, axis=1).min() >= EPS - 1e-6
+    assert not result.fallback
+    assert distances[-1] > start_distance + 0.05  # it moves away from the violated obstacle
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_planner_falls_back_to_stationary_when_backend_plan_is_unsafe(monkeypatch, backend):
+    planner = SafeTrajectoryPlanner(backend=backend)
+    method = f"_solve_{backend}"
+    original = getattr(planner, method)
+
+    def unsafe(prep, warm):
+        plan = original(prep, warm)
+        plan.z[: 2 * (planner.n_waypoints - 1)] = np.tile(prep.centres[0], planner.n_waypoints - 1)
+        return plan
+
+    monkeypatch.setattr(planner, method, unsafe)
+    result = planner.plan([0.0, 0.0], [2.0, 0.0], [[1.0, 0.0]])
+    assert result.fallback and result.status.startswith("fallback")
+    assert result.feasible
+    np.testing.assert_array_equal(result.waypoints, np.zeros((30, 2)))
+    np.testing.assert_array_equal(result.velocities, np.zeros((30, 2)))
+
+
+def test_planner_falls_back_when_backend_raises(monkeypatch) -> None:
+    planner = SafeTrajectoryPlanner(backend="scp")
+
+    def broken(prep, warm):
+        raise RuntimeError("solver crashed")
+
+    monkeypatch.setattr(planner, "_solve_scp", broken)
+    result = planner.plan([1.0, 1.0], [2.0, 0.0], [[1.0, 0.0]])
+    assert result.fallback and "solver crashed" in result.status
+    np.testing.assert_array_equal(result.waypoints, np.tile([1.0, 1.0], (30, 1)))
+
+
+def test_planner_lm_adaptive_raises_lambda_until_certified() -> None:
+    # a weak obstacle weight: fixed lambda = 1 ends inside the clearance (then shortened), the
+    # adaptive mode doubles lambda until the full plan passes the certificate (App. B.2.3)
+    weak = {"backend": "lm", "lm_obstacle_weight": 1.0, "lm_margin": 0.01}
+    start, subgoal = [2.3391915818202227, -1.4057515875805011], [0.36389889695733535, -0.5210884431]
+    obstacles = [[3.4636816, -0.8881663], [0.0308653, -0.3905293], [-0.6212173, -3.3086943],
+                 [1.8644620, -2.1355353]]
+    fixed = SafeTrajectoryPlanner(**weak).plan(start, subgoal, obstacles)
+    assert fixed.status.startswith("solved_shortened") and fixed.multiplier == 1.0
+    result = SafeTrajectoryPlanner(**weak, lm_adaptive=True).plan(start, subgoal, obstacles)
+    assert result.multiplier > 1.0 and result.status == "solved" and not result.fallback
+    assert result.min_clearance >= EPS
+    assert result.objective < fixed.objective
+
+
+def test_planner_lm_repair_shortens_instead_of_falling_back() -> None:
+    # a penalty solution without margin always ends slightly inside: it is shortened, not dropped
+    planner = SafeTrajectoryPlanner(backend="lm", lm_margin=0.0)
+    result = planner.plan([0.0, 0.0], [2.0, 0.0], [[1.0, 0.0]])
+    assert result.status.startswith("solved_shortened")
+    assert result.min_clearance >= EPS and not result.fallback
+
+
+@pytest.mark.parametrize("obstacles", [[], None, np.zeros((0, 2)), np.zeros((0, 3))])
+def test_planner_accepts_empty_obstacles(planners, obstacles) -> None:
+    result = planners[("ipopt", False)].plan([0, 0], [1, 1], obstacles)
+    assert result.feasible and result.reached_subgoal and result.n_considered == 0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"start": [0.0, np.nan]}, "start must be finite"),
+        ({"subgoal": [np.inf, 0.0]}, "subgoal must be finite"),
+        ({"start": [0.0, 0.0, 0.0]}, r"start must have shape \(2,\)"),
+        ({"subgoal": "ab"}, "subgoal must"),
+        ({"obstacles": [[1.0, 2.0, 3.0, 4.0]]}, r"obstacles must have shape \(m, 2\)"),
+        ({"obstacles": [1.0, 2.0]}, r"obstacles must have shape \(m, 2\)"),
+        ({"obstacles": [[1.0, np.nan]]}, "obstacles must be finite"),
+        ({"obstacles": [[1.0, 1.0, -0.1]]}, "radii must be >= 0"),
+        ({"obstacles": [[1.0, "x"]]}, "obstacles must be"),
+    ],
+)
+def test_planner_rejects_bad_input(planners, kwargs, match) -> None:
+    args = {"start": [0.0, 0.0], "subgoal": [1.0, 1.0], "obstacles": [[2.0, 2.0]]} | kwargs
+    for backend in BACKENDS:
+        with pytest.raises(ValueError, match=match):
+            planners[(backend, False)].plan(**args)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"backend": "sqp"}, "backend must be one of"),
+        ({"clearance": -0.1}, "clearance must be"),
+        ({"sigma_smooth": 0.0}, "sigma_smooth must be"),
+        ({"n_waypoints": 2}, "n_waypoints must be"),
+        ({"lm_lambda": 2048.0}, "lm_lambda"),
+        ({"dt": float("nan")}, "dt must be"),
+    ],
+)
+def test_planner_constructor_rejects_bad_settings(kwargs, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        SafeTrajectoryPlanner(**kwargs)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_planner_keeps_nearest_obstacles_and_certifies_all(backend) -> None:
+    planner = SafeTrajectoryPlanner(backend=backend, max_obstacles=2)
+    rng = np.random.default_rng(3)
+    obstacles = np.vstack([[1.0, 0.05], [1.6, -0.6], [0.9, 0.9], rng.uniform(-2, 3, (9, 2))])
+    obstacles = obstacles[np.linalg.norm(obstacles, axis=1) > EPS + 0.05]
+    result = planner.plan([0.0, 0.0], [2.5, 0.0], obstacles)
+    assert result.n_considered == 2
+    assert point_distances(result.waypoints, obstacles).min() >= EPS - 1e-9
+    assert result.feasible
+
+
+def test_planner_drops_unreachable_obstacles(planners) -> None:
+    planner = planners[("ipopt", False)]
+    result = planner.plan([0, 0], [1, 0], [[100.0, 0.0], [0.0, planner.reach + 1.0]])
+    assert result.n_considered == 0 and result.feasible
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_planner_batch_matches_loop(planners, backend) -> None:
+    planner = planners[(backend, False)]
+    problems = random_problems(12, seed=5)
+    starts = [p.start for p in problems]
+    subgoals = [p.subgoal for p in problems]
+    obstacles = [p.obstacles for p in problems]
+    batch = planner.plan_batch(starts, subgoals, obstacles)
+    loop = [
+        planner.plan(s, g, o, warm_start=False)
+        for s, g, o in zip(starts, subgoals, obstacles, strict=True)
+    ]
+    for a, b in zip(batch, loop, strict=True):
+        np.testing.assert_allclose(a.waypoints, b.waypoints, atol=1e-9)
+        assert a.fallback == b.fallback and a.feasible == b.feasible
+
+
+def test_planner_batch_rejects_mismatched_shapes(planners) -> None:
+    with pytest.raises(ValueError, match="one entry per start"):
+        planners[("lm", False)].plan_batch([[0, 0], [1, 1]], [[1, 1], [2, 2]], [[]])
+
+
+def test_planner_warm_start_reuses_previous_plan(planners) -> None:
+    planner = planners[("ipopt", False)]
+    first = planner.plan([0, 0], [2, 0], [[1, 0.1]])
+    second = planner.plan(first.waypoints[3], [2, 0], [[1, 0.1]], warm_start=True)
+    assert second.feasible and not second.fallback and second.reached_subgoal
+
+
+def test_geometry_segment_distance_hand_values() -> None:
+    points = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
+    centres = np.array([[1.0, 1.0], [3.0, -1.0], [-1.0, 0.0]])
+    expected = np.array([[1.0, np.sqrt(2.0), 1.0], [1.0, np.sqrt(2.0), 3.0]])
+    np.testing.assert_allclose(segment_distances(points, centres), expected)
+    np.testing.assert_allclose(segment_distances(points[:1], centres),
+                               point_distances(points[:1], centres))
+
+
+def test_gp_prior_reach_matches_continuous_minimum_energy() -> None:
+    # min over accelerations of int ||a||^2 from rest to displacement D in time T is 3 D^2 / T^3;
+    # the discrete GP prior (exact for the constant-velocity model) gives the same coefficient.
+    prior = build_gp_prior(30, 10.0 / 29.0)
+    assert prior.reach_coef[-1] == pytest.approx(3.0 / 10.0**3, rel=1e-9)
+    target = np.array([1.2, -0.7])
+    assert prior.smoothness(prior.goal_map @ target) == pytest.approx(
+        prior.reach_coef[-1] * target @ target, rel=1e-9
+    )
+
+
+@pytest.mark.parametrize("name", ["ipopt", "lm", "lm_adaptive", "scp"])
+def test_planner_configs_instantiate(name: str) -> None:
+    from hydra.utils import instantiate
+    from omegaconf import OmegaConf
+
+    cfg = OmegaConf.load(CONF_PLANNER / f"{name}.yaml")
+    planner = instantiate(cfg)
+    assert isinstance(planner, SafeTrajectoryPlanner)
+    assert planner.backend == name.split("_")[0]
+    assert planner.lm_adaptive == (name == "lm_adaptive")
+    assert planner.plan([0, 0], [1, 0], [[0.5, 0.6]]).feasible
