@@ -723,7 +723,7 @@ class SafeTrajectoryPlanner:
         return bool(np.all(distances >= need[None, :]))
 
     def _passes(self, prep: PreparedProblem, z: np.ndarray) -> bool:
-        """The certificate: every waypoint (segment) keeps its required distance to all obstacles."""
+        """Certificate: each waypoint (segment) keeps its required distance to every obstacle."""
         if not np.all(np.isfinite(z)):
             return False
         if len(prep.centres) == 0:
