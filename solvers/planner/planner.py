@@ -16,11 +16,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from solvers.planner.geometry import point_distances, segment_distances
 from solvers.planner.ipopt import IPOPT_OPTIONS, IpoptProgram, build_ipopt, solve_ipopt
-from solvers.planner.lm import LMWeights, build_lm_functions
+from solvers.planner.lm import (
+    LMKernel,
+    LMWeights,
+    batch_levenberg_marquardt,
+    build_lm_functions,
+    levenberg_marquardt,
+)
 from solvers.planner.problem import (
     BACKENDS,
     PreparedProblem,
@@ -49,135 +54,6 @@ class _BackendPlan:
     iterations: int
     multiplier: float = float("nan")
     failed: bool = False
-
-
-class _LMKernel:
-    """CasADi step/cost functions of one slot count, evaluated through zero-copy buffers."""
-
-    def __init__(self, step, cost, n_var: int, n_param: int) -> None:
-        self.step = step
-        self.cost = cost
-        self.n_var = n_var
-        self.z = np.zeros(n_var)
-        self.p = np.zeros(n_param)
-        self.f = np.zeros(1)
-        self.g = np.zeros(n_var)
-        self.h = np.zeros((n_var, n_var))
-        self.zc = np.zeros(n_var)
-        self.fc = np.zeros(1)
-        self._step_buf, self._step_eval = step.buffer()
-        for k, arr in enumerate((self.z, self.p)):
-            self._step_buf.set_arg(k, memoryview(arr))
-        for k, arr in enumerate((self.f, self.g, self.h)):
-            self._step_buf.set_res(k, memoryview(arr))
-        self._cost_buf, self._cost_eval = cost.buffer()
-        self._cost_buf.set_arg(0, memoryview(self.zc))
-        self._cost_buf.set_arg(1, memoryview(self.p))
-        self._cost_buf.set_res(0, memoryview(self.fc))
-        self._maps: dict[int, tuple] = {}
-
-    def evaluate(self, z: np.ndarray) -> None:
-        self.z[:] = z
-        self._step_eval()
-
-    def cost_at(self, z: np.ndarray) -> float:
-        self.zc[:] = z
-        self._cost_eval()
-        return float(self.fc[0])
-
-    def mapped(self, batch: int) -> _MappedKernel:
-        """The step and cost functions mapped over ``batch`` problems (built once per size)."""
-        if batch not in self._maps:
-            self._maps[batch] = _MappedKernel(self.step, self.cost, self.n_var, len(self.p), batch)
-        return self._maps[batch]
-
-
-class _MappedKernel:
-    """``_LMKernel`` for B problems at once: one CasADi call evaluates all of them."""
-
-    def __init__(self, step, cost, n_var: int, n_param: int, batch: int) -> None:
-        self.n_var = n_var
-        # CasADi is column-major: a (B, n) C-order array is the n x B matrix of B columns.
-        self.z = np.zeros((batch, n_var))
-        self.p = np.zeros((batch, n_param))
-        self.f = np.zeros(batch)
-        self.g = np.zeros((batch, n_var))
-        self.h = np.zeros((batch, n_var, n_var))
-        self.zc = np.zeros((batch, n_var))
-        self.fc = np.zeros(batch)
-        self._step_buf, self._step_eval = step.map(batch).buffer()
-        for k, arr in enumerate((self.z, self.p)):
-            self._step_buf.set_arg(k, memoryview(arr))
-        for k, arr in enumerate((self.f, self.g, self.h)):
-            self._step_buf.set_res(k, memoryview(arr))
-        self._cost_buf, self._cost_eval = cost.map(batch).buffer()
-        self._cost_buf.set_arg(0, memoryview(self.zc))
-        self._cost_buf.set_arg(1, memoryview(self.p))
-        self._cost_buf.set_res(0, memoryview(self.fc))
-
-    def evaluate(self, z: np.ndarray) -> None:
-        self.z[:] = z
-        self._step_eval()
-
-    def costs_at(self, z: np.ndarray) -> np.ndarray:
-        self.zc[:] = z
-        self._cost_eval()
-        return self.fc.copy()
-
-
-def levenberg_marquardt(
-    kernel: _LMKernel,
-    z0: np.ndarray,
-    *,
-    iterations: int,
-    damping: float,
-    backtracks: int = 8,
-) -> tuple[np.ndarray, float, int]:
-    """Monotone LM with Marquardt scaling on a kernel whose parameters are already set.
-
-    A step is accepted only when it lowers the penalty cost, so the cost never exceeds its value
-    at ``z0``. When the full step fails (the hinge terms switch on and off, so the Gauss-Newton
-    model can be poor far away) the same direction is halved up to ``backtracks`` times (a cost
-    evaluation each, cheap next to a Jacobian) and the damping is raised for the next iteration;
-    after a full step the damping is divided by 3. Returns (z, cost, iterations).
-    """
-    z = z0.copy()
-    kernel.evaluate(z)
-    cost = float(kernel.f[0])
-    mu = damping
-    done = 0
-    for done in range(1, iterations + 1):  # noqa: B007 (the count is returned)
-        hess = kernel.h
-        diag = np.diag(hess)
-        damped = hess.copy()
-        damped.flat[:: kernel.n_var + 1] += mu * np.maximum(diag, 1e-9) + 1e-12
-        try:
-            factor = sla.cho_factor(damped, check_finite=False)
-        except sla.LinAlgError:
-            mu *= 10.0
-            continue
-        direction = -sla.cho_solve(factor, kernel.g, check_finite=False)
-        scale = 1.0
-        accepted = False
-        for _ in range(backtracks + 1):
-            new_cost = kernel.cost_at(z + scale * direction)
-            if new_cost < cost:
-                accepted = True
-                break
-            scale *= 0.5
-        if not accepted:
-            mu *= 16.0
-            if mu > 1e12:
-                break
-            continue
-        improvement = cost - new_cost
-        z = z + scale * direction
-        kernel.evaluate(z)
-        cost = float(kernel.f[0])
-        mu = max(mu / 3.0, 1e-12) if scale == 1.0 else mu * 4.0
-        if improvement <= 1e-12 * max(cost, 1.0) or cost <= 1e-24:
-            break
-    return z, cost, done
 
 
 class SafeTrajectoryPlanner:
@@ -316,7 +192,7 @@ class SafeTrajectoryPlanner:
             obstacle=float(lm_obstacle_weight),
             sigma_smooth=self.sigma_smooth,
         )
-        self._lm_kernels: dict[int, _LMKernel] = {}
+        self._lm_kernels: dict[int, LMKernel] = {}
         self._ipopt: dict[tuple[int, str], IpoptProgram] = {}
         self._scp: dict[int, ScpProgram] = {}
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -442,12 +318,12 @@ class SafeTrajectoryPlanner:
         )
 
     # ------------------------------------------------------------------ LM
-    def _lm_kernel(self, n_slots: int) -> _LMKernel:
+    def _lm_kernel(self, n_slots: int) -> LMKernel:
         if n_slots not in self._lm_kernels:
             step, cost = build_lm_functions(
                 self.prior, self._lm_weights, n_slots, continuous=self.continuous
             )
-            self._lm_kernels[n_slots] = _LMKernel(step, cost, self.prior.n_var, 4 + 3 * n_slots)
+            self._lm_kernels[n_slots] = LMKernel(step, cost, self.n_waypoints)
         return self._lm_kernels[n_slots]
 
     def _lm_params(
@@ -462,8 +338,8 @@ class SafeTrajectoryPlanner:
         return np.concatenate([prep.goal, centres.ravel(), radii, [lam, lam * budget_factor]])
 
     def _solve_lm(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
-        kernel = self._lm_kernel(bucket_size(len(prep.selected), self.max_obstacles))
-        n_slots = (len(kernel.p) - 4) // 3
+        n_slots = bucket_size(len(prep.selected), self.max_obstacles)
+        kernel = self._lm_kernel(n_slots)
         lam = self.lm_lambda_max if prep.escape_mode else self.lm_lambda
         # rank the initial guesses by goal distance and clearance, barely by the budget: LM
         # repairs a budget overrun quickly, while a stationary start cannot pick a side around
@@ -521,7 +397,7 @@ class SafeTrajectoryPlanner:
     def _plan_batch_lm(
         self, starts: np.ndarray, subgoals: np.ndarray, obstacles_list: Sequence[object]
     ) -> list[PlanResult]:
-        """LM on B problems in lockstep: the same iteration as :func:`levenberg_marquardt`."""
+        """LM on B problems in lockstep (see :func:`batch_levenberg_marquardt`)."""
         tic = time.perf_counter()
         preps = [
             self._prepare(s, g, o)
@@ -529,8 +405,8 @@ class SafeTrajectoryPlanner:
         ]
         batch = len(preps)
         n_slots = max(bucket_size(len(p.selected), self.max_obstacles) for p in preps)
-        kernel = self._lm_kernel(n_slots).mapped(batch)
-        nv = self.prior.n_var
+        single = self._lm_kernel(n_slots)
+        kernel = single.mapped(batch)
         lams = np.array([self.lm_lambda_max if p.escape_mode else self.lm_lambda for p in preps])
         kernel.p[:] = [
             self._lm_params(p, n_slots, lam, CANDIDATE_BUDGET_FACTOR)
@@ -548,51 +424,11 @@ class SafeTrajectoryPlanner:
         kernel.p[:] = [self._lm_params(p, n_slots, lam) for p, lam in zip(preps, lams, strict=True)]
         totals = np.zeros(batch, dtype=int)
         active = np.ones(batch, dtype=bool)
-        diag_index = np.arange(nv)
-        while True:
-            mu = np.full(batch, self.lm_damping)
-            running = active.copy()
-            kernel.evaluate(zs)
-            cost = kernel.f.copy()
-            for _ in range(self.lm_iterations):
-                if not running.any():
-                    break
-                totals[running] += 1
-                directions = np.zeros((batch, nv))
-                for b in np.flatnonzero(running):
-                    damped = kernel.h[b].copy()
-                    diag = damped[diag_index, diag_index].copy()
-                    damped[diag_index, diag_index] += mu[b] * np.maximum(diag, 1e-9) + 1e-12
-                    try:
-                        factor = sla.cho_factor(damped, check_finite=False)
-                    except sla.LinAlgError:
-                        mu[b] *= 10.0
-                        continue
-                    directions[b] = -sla.cho_solve(factor, kernel.g[b], check_finite=False)
-                scale = np.ones(batch)
-                pending = running.copy()
-                new_cost = cost.copy()
-                for _ in range(9):
-                    trial_costs = kernel.costs_at(zs + scale[:, None] * directions)
-                    ok = pending & (trial_costs < cost)
-                    new_cost[ok] = trial_costs[ok]
-                    pending &= ~ok
-                    if not pending.any():
-                        break
-                    scale[pending] *= 0.5
-                accepted = running & ~pending
-                rejected = running & pending
-                mu[rejected] *= 16.0
-                improvement = cost - new_cost
-                zs[accepted] += scale[accepted, None] * directions[accepted]
-                full = accepted & (scale == 1.0)
-                mu[full] = np.maximum(mu[full] / 3.0, 1e-12)
-                mu[accepted & ~full] *= 4.0
-                if accepted.any():
-                    kernel.evaluate(zs)
-                    cost[accepted] = kernel.f[accepted]
-                converged = accepted & (improvement <= 1e-12 * np.maximum(cost, 1.0))
-                running &= ~converged & (mu <= 1e12)
+        while active.any():
+            zs, counts = batch_levenberg_marquardt(
+                kernel, single, zs, active, iterations=self.lm_iterations, damping=self.lm_damping
+            )
+            totals += counts
             if not self.lm_adaptive:
                 break
             for b in np.flatnonzero(active):
@@ -601,13 +437,15 @@ class SafeTrajectoryPlanner:
                 else:
                     lams[b] = min(2.0 * lams[b], self.lm_lambda_max)
                     kernel.p[b] = self._lm_params(preps[b], n_slots, lams[b])
-            if not active.any():
-                break
         elapsed = (time.perf_counter() - tic) / batch
         return [
-            self._certify(p, self._lm_repair(p, _BackendPlan(zs[b].copy(), "solved",
-                                                                 int(totals[b]), lams[b])),
-                          elapsed)
+            self._certify(
+                p,
+                self._lm_repair(
+                    p, _BackendPlan(zs[b].copy(), "solved", int(totals[b]), float(lams[b]))
+                ),
+                elapsed,
+            )
             for b, p in enumerate(preps)
         ]
 
