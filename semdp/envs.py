@@ -87,7 +87,7 @@ def _resolve_wrapper(wrapper: Any) -> Callable[[gym.Env], gym.Env] | None:
 
 
 def make_vec_env(
-    env_cfg: Mapping[str, Any], seed: int, num_envs: int | None = None
+    env_cfg: Mapping[str, Any], seed: int, num_envs: int | None = None, evaluation: bool = False
 ) -> gym.vector.SyncVectorEnv:
     """A seeded ``SyncVectorEnv`` from an env config node.
 
@@ -97,16 +97,22 @@ def make_vec_env(
             sub-env before vectorisation) and optional ``add_zero_cost``.
         seed: seeds the action spaces; the algorithm seeds ``reset``.
         num_envs: overrides ``env_cfg["num_envs"]``.
+        evaluation: build the evaluation env: uses ``env_cfg["eval_wrapper"]`` when it is set
+            (e.g. the SEMDP wrapper with adaptive lambda / exact IPOPT at test time), else
+            ``wrapper``.
     """
     n = int(num_envs if num_envs is not None else env_cfg.get("num_envs", 1))
     if n < 1:
         raise ValueError(f"env.num_envs must be >= 1, got {n}")
     kwargs = dict(env_cfg.get("kwargs") or {})
+    wrapper = env_cfg.get("wrapper")
+    if evaluation and env_cfg.get("eval_wrapper") is not None:
+        wrapper = env_cfg.get("eval_wrapper")
     factory = functools.partial(
         make_env,
         env_cfg["id"],
         kwargs,
-        _resolve_wrapper(env_cfg.get("wrapper")),
+        _resolve_wrapper(wrapper),
         bool(env_cfg.get("add_zero_cost", False)),
     )
     envs = gym.vector.SyncVectorEnv(

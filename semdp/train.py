@@ -70,7 +70,7 @@ def build_algorithm(cfg: DictConfig) -> Algorithm:
     seed_everything(int(cfg.seed))
     envs = make_vec_env(cfg.env, seed=int(cfg.seed))
     eval_n = max(1, min(int(cfg.env.num_envs), max(int(cfg.eval_episodes), 1)))
-    eval_envs = make_vec_env(cfg.env, seed=int(cfg.seed) + 1, num_envs=eval_n)
+    eval_envs = make_vec_env(cfg.env, seed=int(cfg.seed) + 1, num_envs=eval_n, evaluation=True)
     return instantiate(cfg.algo, envs=envs, eval_envs=eval_envs, seed=int(cfg.seed),
                        _convert_="all")
 

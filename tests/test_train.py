@@ -143,3 +143,23 @@ def test_train_resume_of_a_directory_without_checkpoint_fails(
 ) -> None:
     with pytest.raises(ValueError, match="resume"):
         run(tiny_train("ppo", f"resume={tmp_path}"), tmp_path / "x")
+
+
+def test_train_env_wrapper_node_is_applied_to_each_sub_env(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    from semdp.train import build_algorithm
+
+    rescale = "{_target_: gymnasium.wrappers.RescaleAction, _partial_: true, " \
+              "min_action: -0.5, max_action: 0.5}"
+    cfg = tiny_train("ppo", f"env.wrapper={rescale}")
+    algo = build_algorithm(cfg)
+    assert float(algo.envs.single_action_space.high[0]) == 0.5
+    assert float(algo.eval_envs.single_action_space.high[0]) == 0.5
+    narrow = "{_target_: gymnasium.wrappers.RescaleAction, _partial_: true, " \
+             "min_action: -0.25, max_action: 0.25}"
+    cfg = tiny_train("ppo", f"env.wrapper={rescale}", f"env.eval_wrapper={narrow}")
+    algo = build_algorithm(cfg)
+    assert float(algo.envs.single_action_space.high[0]) == 0.5
+    assert float(algo.eval_envs.single_action_space.high[0]) == 0.25
+    assert run(tiny_train("sac", f"env.wrapper={rescale}"), tmp_path)["status"] == "completed"

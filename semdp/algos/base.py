@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
+import pickle
 import sys
 import time
 from abc import ABC, abstractmethod
@@ -94,6 +95,7 @@ class Algorithm(ABC):
         self._ep_cost = np.zeros(self.num_envs)
         self._ep_len = np.zeros(self.num_envs, dtype=np.int64)
         self._episodes: list[tuple[float, float, int]] = []
+        self._warned_unpicklable = False
 
     # ----------------------------------------------------------------- helpers
     def _flat_obs(self, obs: npt.ArrayLike) -> npt.NDArray[np.float64]:
@@ -197,21 +199,40 @@ class Algorithm(ABC):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` (the training env is replaced by the pickled one)."""
-        self.envs.close()
         self.epoch, self.env_steps = state["epoch"], state["env_steps"]
         self.wall_time = state["wall_time"]
-        self.envs = state["envs"]
-        self._obs = state["obs"].copy()
-        ret, cost, length = state["episode_accumulators"]
-        self._ep_ret, self._ep_cost, self._ep_len = ret.copy(), cost.copy(), length.copy()
+        if state["envs"] is not None:
+            self.envs.close()
+            self.envs = state["envs"]
+            self._obs = state["obs"].copy()
+            ret, cost, length = state["episode_accumulators"]
+            self._ep_ret, self._ep_cost, self._ep_len = ret.copy(), cost.copy(), length.copy()
+        else:  # the env was not picklable: restart its episodes deterministically
+            obs, _ = self.envs.reset(seed=self.seed + 7919 * (self.epoch + 1))
+            self._obs = self._flat_obs(obs)
         set_rng_states(state["rng"])
 
     # ----------------------------------------------------------------- the loop
     def save_checkpoint(self, path: Path) -> None:
-        """``torch.save`` of :meth:`state_dict` (pickles the env)."""
+        """``torch.save`` of :meth:`state_dict`.
+
+        The vector env is pickled with it so that a resume is exact. An env that cannot be
+        pickled (e.g. one holding a closure) is left out with a warning; resuming such a run
+        restarts the episodes in progress from a reset seeded by ``(seed, epoch)``, so it
+        continues correctly but not bit-for-bit.
+        """
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
-        torch.save({"algo": self.state_dict()}, tmp)
+        state = self.state_dict()
+        try:
+            torch.save({"algo": state}, tmp)
+        except (AttributeError, TypeError, pickle.PicklingError) as exc:
+            if not self._warned_unpicklable:
+                logger.warning("env cannot be pickled (%s): checkpoints omit the env state; "
+                               "a resume will not be bit-identical", exc)
+                self._warned_unpicklable = True
+            state["envs"] = None
+            torch.save({"algo": state}, tmp)
         tmp.replace(path)
 
     def load_checkpoint(self, path: Path) -> None:
