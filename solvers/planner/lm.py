@@ -17,8 +17,7 @@ residual except the budget touches two consecutive waypoints, so ``J^T J`` is a 
 (bandwidth 7) plus the rank-one budget term ``a a^T``. One CasADi SX function per compiled
 obstacle-slot count returns the cost, ``J^T r``, the band and ``a``; a damped step is then one
 banded Cholesky solve (LAPACK ``pbtrs`` through :func:`scipy.linalg.solveh_banded`) and the
-Sherman-Morrison formula. For a batch, the bands of all problems form one block-diagonal band
-matrix: a single CasADi call and a single LAPACK call per iteration for every problem.
+Sherman-Morrison formula.
 """
 
 from __future__ import annotations
@@ -153,7 +152,6 @@ class LMKernel:
         self._cost_buf.set_arg(0, memoryview(self.wc))
         self._cost_buf.set_arg(1, memoryview(self.p))
         self._cost_buf.set_res(0, memoryview(self.fc))
-        self._maps: dict[int, MappedLMKernel] = {}
 
     def evaluate(self, z: np.ndarray) -> float:
         """Evaluate cost, gradient and the Gauss-Newton matrix at ``z``; return the cost."""
@@ -182,68 +180,6 @@ class LMKernel:
         u, v = solved[:, 0], solved[:, 1]
         step_w = -(u - v * (self.a @ u) / (1.0 + self.a @ v))
         return step_w[self.inverse]
-
-    def mapped(self, batch: int) -> MappedLMKernel:
-        """The functions mapped over ``batch`` problems (built once per size)."""
-        if batch not in self._maps:
-            self._maps[batch] = MappedLMKernel(self, batch)
-        return self._maps[batch]
-
-
-class MappedLMKernel:
-    """:class:`LMKernel` for B problems: one CasADi call and one LAPACK call per iteration."""
-
-    def __init__(self, kernel: LMKernel, batch: int) -> None:
-        n_var = kernel.n_var
-        self.batch = batch
-        self.n_var = n_var
-        self.perm = kernel.perm
-        self.inverse = kernel.inverse
-        # CasADi is column-major: a (B, n) C-order array is the n x B matrix of B columns.
-        self.w = np.zeros((batch, n_var))
-        self.p = np.zeros((batch, len(kernel.p)))
-        self.f = np.zeros(batch)
-        self.g = np.zeros((batch, n_var))
-        self.band = np.zeros((batch, BANDWIDTH + 1, n_var))
-        self.a = np.zeros((batch, n_var))
-        self.wc = np.zeros((batch, n_var))
-        self.fc = np.zeros(batch)
-        self._step_buf, self._step_eval = kernel.step.map(batch).buffer()
-        for k, arr in enumerate((self.w, self.p)):
-            self._step_buf.set_arg(k, memoryview(arr))
-        for k, arr in enumerate((self.f, self.g, self.band, self.a)):
-            self._step_buf.set_res(k, memoryview(arr))
-        self._cost_buf, self._cost_eval = kernel.cost.map(batch).buffer()
-        self._cost_buf.set_arg(0, memoryview(self.wc))
-        self._cost_buf.set_arg(1, memoryview(self.p))
-        self._cost_buf.set_res(0, memoryview(self.fc))
-
-    def evaluate(self, z: np.ndarray) -> np.ndarray:
-        """Evaluate all problems at ``z`` (B, n); return the costs (B,)."""
-        self.w[:] = z[:, self.perm]
-        self._step_eval()
-        return self.f.copy()
-
-    def costs_at(self, z: np.ndarray) -> np.ndarray:
-        """Penalty costs (B,) at ``z`` (B, n)."""
-        self.wc[:] = z[:, self.perm]
-        self._cost_eval()
-        return self.fc.copy()
-
-    def directions(self, mu: np.ndarray) -> np.ndarray:
-        """Damped steps (B, n) for all problems: the band matrices stacked block-diagonally."""
-        damped = self.band.copy()
-        diag = damped[:, 0] + self.a**2
-        damped[:, 0] += mu[:, None] * np.maximum(diag, 1e-9) + 1e-12
-        big = damped.transpose(1, 0, 2).reshape(BANDWIDTH + 1, -1)
-        rhs = np.column_stack([self.g.ravel(), self.a.ravel()])
-        solved = sla.solveh_banded(big, rhs, lower=True, check_finite=False)
-        u = solved[:, 0].reshape(self.batch, self.n_var)
-        v = solved[:, 1].reshape(self.batch, self.n_var)
-        au = np.einsum("bn,bn->b", self.a, u)
-        av = np.einsum("bn,bn->b", self.a, v)
-        step_w = -(u - v * (au / (1.0 + av))[:, None])
-        return step_w[:, self.inverse]
 
 
 def levenberg_marquardt(
@@ -292,97 +228,3 @@ def levenberg_marquardt(
         if improvement <= 1e-12 * max(cost, 1.0) or cost <= 1e-24:
             break
     return z, cost, done
-
-
-def batch_levenberg_marquardt(
-    kernel: MappedLMKernel,
-    single: LMKernel,
-    z0: np.ndarray,
-    running: np.ndarray,
-    *,
-    iterations: int,
-    damping: float,
-    backtracks: int = 8,
-    min_running_share: float = 0.5,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`levenberg_marquardt` on the ``running`` problems of a batch, in lockstep.
-
-    Every problem follows exactly the iteration it would follow alone (same steps, same
-    acceptance), so the batch and a loop of single solves agree. The expensive parts are shared:
-    one mapped CasADi call evaluates the Jacobian products of all problems and one banded LAPACK
-    call solves all damped systems; the cheap cost evaluations of the line search run only for
-    the problems that still need them (through ``single``, the unmapped kernel). Once fewer than
-    ``min_running_share`` of the batch still iterate, the stragglers finish one by one (a mapped
-    call would evaluate the finished problems too). Returns (z, iterations per problem).
-    """
-    z = z0.copy()
-    running = running.copy()
-    counts = np.zeros(len(z), dtype=int)
-    cost = kernel.evaluate(z)
-    mu = np.full(len(z), damping)
-
-    def cost_of(b: int, point: np.ndarray) -> float:
-        single.p[:] = kernel.p[b]
-        return single.cost_at(point)
-
-    done = 0
-    for done in range(iterations):  # noqa: B007 (used after the loop)
-        if running.sum() < max(min_running_share * len(z), 1):
-            break
-        counts[running] += 1
-        try:
-            directions = kernel.directions(mu)
-        except np.linalg.LinAlgError:  # some block is not positive definite: go one by one
-            directions = np.zeros_like(z)
-            for b in np.flatnonzero(running):
-                one = _single_direction(kernel, b, mu[b])
-                if one is None:
-                    mu[b] *= 10.0
-                else:
-                    directions[b] = one
-        accepted = np.zeros(len(z), dtype=bool)
-        full = np.zeros(len(z), dtype=bool)
-        improvement = np.zeros(len(z))
-        for b in np.flatnonzero(running):
-            scale = 1.0
-            for _ in range(backtracks + 1):
-                trial = cost_of(b, z[b] + scale * directions[b])
-                if trial < cost[b]:
-                    accepted[b] = True
-                    full[b] = scale == 1.0
-                    improvement[b] = cost[b] - trial
-                    z[b] = z[b] + scale * directions[b]
-                    break
-                scale *= 0.5
-        mu[running & ~accepted] *= 16.0
-        mu[full] = np.maximum(mu[full] / 3.0, 1e-12)
-        mu[accepted & ~full] *= 4.0
-        if accepted.any():
-            evaluated = kernel.evaluate(z)
-            cost[accepted] = evaluated[accepted]
-        converged = accepted & ((improvement <= 1e-12 * np.maximum(cost, 1.0)) | (cost <= 1e-24))
-        running &= ~converged & (mu <= 1e12)
-    else:
-        done = iterations
-    for b in np.flatnonzero(running):
-        single.p[:] = kernel.p[b]
-        z[b], _, extra = levenberg_marquardt(
-            single, z[b], iterations=iterations - done, damping=float(mu[b]), backtracks=backtracks
-        )
-        counts[b] += extra
-    return z, counts
-
-
-def _single_direction(kernel: MappedLMKernel, b: int, mu: float) -> np.ndarray | None:
-    damped = kernel.band[b].copy()
-    diag = damped[0] + kernel.a[b] ** 2
-    damped[0] += mu * np.maximum(diag, 1e-9) + 1e-12
-    try:
-        solved = sla.solveh_banded(
-            damped, np.column_stack([kernel.g[b], kernel.a[b]]), lower=True, check_finite=False
-        )
-    except np.linalg.LinAlgError:
-        return None
-    u, v = solved[:, 0], solved[:, 1]
-    a = kernel.a[b]
-    return -(u - v * (a @ u) / (1.0 + a @ v))[kernel.inverse]
