@@ -156,6 +156,8 @@ class Algorithm(ABC):
         envs = self.eval_envs
         obs, _ = envs.reset(seed=self.seed + EVAL_SEED_OFFSET if seed is None else seed)
         n = envs.num_envs
+        # A fixed quota of episodes per sub-env, so short episodes are not over-represented.
+        quota = np.array([episodes // n + (i < episodes % n) for i in range(n)])
         ret, cost = np.zeros(n), np.zeros(n)
         results: list[tuple[float, float, float | None]] = []
         while len(results) < episodes:
@@ -166,7 +168,8 @@ class Algorithm(ABC):
             ret += rewards
             cost += costs
             for i in np.flatnonzero(ended):
-                if len(results) < episodes:
+                if quota[i] > 0:
+                    quota[i] -= 1
                     info = infos["final_info"]
                     key = "success" if "success" in info else "is_success"
                     success = float(info[key][i]) if key in info else None
