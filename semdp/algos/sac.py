@@ -125,7 +125,7 @@ class SAC(Algorithm):
         loss_q.backward()
         self.critic_optimizer.step()
         self._updates += 1
-        out = {"loss_q": float(loss_q), "q_mean": float(q1.mean())}
+        out = {"loss_q": loss_q.item(), "q_mean": q1.mean().item()}
         if self._updates % self.policy_frequency == 0:
             for _ in range(self.policy_frequency):
                 a, logp = self.actor(batch.obs)
@@ -134,7 +134,7 @@ class SAC(Algorithm):
                 self.actor_optimizer.zero_grad()
                 loss_pi.backward()
                 self.actor_optimizer.step()
-                out.update(loss_pi=float(loss_pi), entropy=float(-logp.mean()))
+                out.update(loss_pi=loss_pi.item(), entropy=-logp.mean().item())
                 if self.autotune:
                     loss_alpha = -(self.log_alpha * (logp.detach() + self.target_entropy)).mean()
                     self.alpha_optimizer.zero_grad()
