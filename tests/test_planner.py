@@ -261,6 +261,17 @@ def test_planner_warm_start_reuses_previous_plan(planners) -> None:
     assert second.feasible and not second.fallback and second.reached_subgoal
 
 
+def test_planner_pickles_without_compiled_solvers(planners) -> None:
+    import pickle
+
+    for backend in BACKENDS:
+        planner = planners[(backend, False)]
+        before = planner.plan([0, 0], [2, 0], [[1, 0.1]], warm_start=False)
+        clone = pickle.loads(pickle.dumps(planner))
+        after = clone.plan([0, 0], [2, 0], [[1, 0.1]], warm_start=False)
+        np.testing.assert_allclose(after.waypoints, before.waypoints, atol=1e-9)
+
+
 def test_geometry_segment_distance_hand_values() -> None:
     points = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
     centres = np.array([[1.0, 1.0], [3.0, -1.0], [-1.0, 0.0]])

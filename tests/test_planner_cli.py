@@ -39,5 +39,5 @@ def test_planner_benchmark_writes_table_and_csv(tmp_path: Path, capsys) -> None:
     printed = capsys.readouterr().out
     assert "| ipopt |" in printed and "| lm[batch3] |" in printed
     summary = (tmp_path / "planner_summary.csv").read_text().splitlines()
-    assert summary[0].startswith("variant,n,median_ms") and len(summary) == 4
+    assert summary[0].startswith("variant,n,median_ms,mean_ms") and len(summary) == 4
     assert len((tmp_path / "planner_results.csv").read_text().splitlines()) == 1 + 3 * 6

@@ -7,7 +7,8 @@ Usage::
 Variants: ``ipopt``, ``lm`` (fixed lambda, 10 iterations: the training setting), ``lm_adaptive``
 (lambda doubled until certified, up to 1024: the evaluation setting), ``scp``; append ``_cont``
 for the continuous (segment) certificate, e.g. ``scp_cont``. ``batch=B`` adds a row for the LM
-batch entry point (B problems per call). Prints a table and writes ``planner_summary.csv`` and
+batch entry point (B problems per call; its times are per-call means, so compare them with
+the ``mean ms`` column). Prints a table and writes ``planner_summary.csv`` and
 ``planner_results.csv`` (one row per problem and variant) to ``out``
 (default ``outputs/benchmarks/planner``).
 """
@@ -122,7 +123,8 @@ def main(argv: list[str]) -> None:
             })
         ms = times * 1e3
         summary.append({
-            "variant": label, "n": n, "median_ms": np.median(ms), "p95_ms": np.percentile(ms, 95),
+            "variant": label, "n": n, "median_ms": np.median(ms), "mean_ms": np.mean(ms),
+            "p95_ms": np.percentile(ms, 95),
             "max_ms": ms.max(), "feasible_pct": 100 * feasible.mean(),
             "fallback_pct": 100 * np.mean([r.fallback for r in results]),
             "reached_pct": 100 * reached[label].mean(),
@@ -153,15 +155,16 @@ def main(argv: list[str]) -> None:
     machine = platform.processor() or platform.machine()
     print(f"planner benchmark: {n} problems, seed {seed}, {machine}")
     header = (
-        "| variant | median ms | p95 ms | max ms | feasible % | fallback % | reached % "
+        "| variant | median ms | mean ms | p95 ms | max ms | feasible % | fallback % | reached % "
         "| reached where IPOPT reached % | obj gap to IPOPT (median / mean) | iters (median) "
         "| x faster than Theseus LM (63 ms) |"
     )
     print(header)
-    print("|" + "---|" * 11)
+    print("|" + "---|" * 12)
     for row in summary:
         print(
-            f"| {row['variant']} | {row['median_ms']:.2f} | {row['p95_ms']:.2f} | "
+            f"| {row['variant']} | {row['median_ms']:.2f} | {row['mean_ms']:.2f} | "
+            f"{row['p95_ms']:.2f} | "
             f"{row['max_ms']:.1f} | {row['feasible_pct']:.1f} | {row['fallback_pct']:.1f} | "
             f"{row['reached_pct']:.1f} | {row['reached_vs_ipopt_pct']:.1f} | "
             f"{row['obj_gap_median']:.2g} / {row['obj_gap_mean']:.2g} | "

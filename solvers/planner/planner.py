@@ -227,7 +227,7 @@ class SafeTrajectoryPlanner:
         except (RuntimeError, np.linalg.LinAlgError) as error:  # solver crash -> fallback
             logger.warning("planner backend %s failed: %s", self.backend, error)
             plan = _BackendPlan(np.zeros(self.prior.n_var), f"error: {error}", 0, failed=True)
-        result = self._certify(prep, plan, time.perf_counter() - tic)
+        result = self._certify(prep, plan, tic)
         self._previous = (prep.start.copy(), prep.start + prep.goal, result.waypoints.copy())
         return result
 
@@ -263,6 +263,17 @@ class SafeTrajectoryPlanner:
             self.plan(s, g, o, warm_start=False)
             for s, g, o in zip(starts_arr, subgoals_arr, obstacles_list, strict=True)
         ]
+
+    def __getstate__(self) -> dict[str, object]:
+        """Pickle without the compiled solvers (CasADi/OSQP objects); they are rebuilt lazily.
+
+        So a planner can be sent to vectorised-environment worker processes.
+        """
+        state = dict(self.__dict__)
+        state["_lm_kernels"] = {}
+        state["_ipopt"] = {}
+        state["_scp"] = {}
+        return state
 
     def warmup(self) -> SafeTrajectoryPlanner:
         """Build every compiled solver now (one per obstacle-slot count) instead of on first use."""
@@ -510,31 +521,34 @@ class SafeTrajectoryPlanner:
                      else point_distances(positions, prep.centres))
         return bool(np.all(distances >= prep.required[None, :] - CERTIFICATE_TOLERANCE))
 
-    def _certify(self, prep: PreparedProblem, plan: _BackendPlan, elapsed: float) -> PlanResult:
+    def _certify(self, prep: PreparedProblem, plan: _BackendPlan, tic: float) -> PlanResult:
+        """Check the plan against every obstacle; replace it by the stationary one if it fails."""
         z = plan.z
         status = plan.status
-        fallback = False
-        if plan.failed:
+        fallback = plan.failed or not np.all(np.isfinite(z))
+        if fallback:
             z = np.zeros(self.prior.n_var)
-            fallback = True
             status = f"fallback: {plan.status}"
-        elif not self._passes(prep, z):
-            z = np.zeros(self.prior.n_var)
-            fallback = True
-            status = f"fallback: {plan.status}: plan failed the clearance certificate"
         positions, velocities = split(z, self.n_waypoints)
         radii = prep.clearances - self.clearance
+        min_clear = min_cont = float("inf")
+        feasible = True
         if len(prep.centres):
             point = point_distances(positions, prep.centres)
             segment = segment_distances(positions, prep.centres)
+            checked = segment if self.continuous else point
+            floor = CERTIFICATE_TOLERANCE
+            if not fallback and not np.all(checked >= prep.required[None, :] - floor):
+                fallback = True
+                status = f"fallback: {plan.status}: plan failed the clearance certificate"
+                positions[:] = 0.0
+                velocities[:] = 0.0
+                point = np.broadcast_to(prep.start_distances, point.shape)
+                segment = np.broadcast_to(prep.start_distances, segment.shape)
+                checked = segment if self.continuous else point
             min_clear = float(np.min(point - radii[None, :]))
             min_cont = float(np.min(segment - radii[None, :]))
-            feasible = bool(np.all(segment >= prep.clearances[None, :] - CERTIFICATE_TOLERANCE)
-                            if self.continuous
-                            else np.all(point >= prep.clearances[None, :] - CERTIFICATE_TOLERANCE))
-        else:
-            min_clear = min_cont = float("inf")
-            feasible = True
+            feasible = bool(np.all(checked >= prep.clearances[None, :] - floor))
         gap = positions[-1] - prep.goal
         objective = float(gap @ gap)
         return PlanResult(
@@ -548,7 +562,7 @@ class SafeTrajectoryPlanner:
             min_clearance=min_clear,
             min_clearance_continuous=min_cont,
             iterations=int(plan.iterations),
-            solve_time_s=float(elapsed),
+            solve_time_s=time.perf_counter() - tic,
             backend=self.backend,
             reached_subgoal=bool(np.sqrt(objective) < self.goal_tolerance),
             multiplier=float(plan.multiplier),
