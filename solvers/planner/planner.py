@@ -205,8 +205,9 @@ class SafeTrajectoryPlanner:
             start: Robot root position (2,).
             subgoal: Target of the last waypoint (2,).
             obstacles: (m, 2) centres or (m, 3) centres with radii; None or empty for none.
-            warm_start: Reuse the previous plan as the first initial guess when the subgoal
-                moved less than 0.25 m since the previous call.
+            warm_start: When the subgoal moved less than 0.25 m since the previous call, use the
+                rest of the previous plan (from its waypoint nearest to the new start on) as an
+                initial guess (receding-horizon use).
 
         Returns:
             The certified plan (see :class:`PlanResult`).
@@ -224,8 +225,8 @@ class SafeTrajectoryPlanner:
                 plan = self._solve_ipopt(prep, warm)
             else:
                 plan = self._solve_scp(prep, warm)
-        except (RuntimeError, np.linalg.LinAlgError) as error:  # solver crash -> fallback
-            logger.warning("planner backend %s failed: %s", self.backend, error)
+        except Exception as error:  # a solver crash must not end a training run: fall back
+            logger.warning("planner backend %s failed: %r", self.backend, error)
             plan = _BackendPlan(np.zeros(self.prior.n_var), f"error: {error}", 0, failed=True)
         result = self._certify(prep, plan, tic)
         self._previous = (prep.start.copy(), prep.start + prep.goal, result.waypoints.copy())
@@ -310,8 +311,12 @@ class SafeTrajectoryPlanner:
         _, previous_goal, waypoints = self._previous
         if np.hypot(*(prep.start + prep.goal - previous_goal)) > 0.25:
             return None
-        positions = waypoints - prep.start
-        positions[0] = 0.0
+        rest = waypoints - prep.start
+        nearest = int(np.argmin(np.einsum("nk,nk->n", rest, rest)))
+        positions = np.zeros_like(rest)
+        tail = rest[nearest + 1 :]
+        positions[1 : 1 + len(tail)] = tail
+        positions[1 + len(tail) :] = rest[-1]
         velocities = np.zeros_like(positions)
         velocities[1:] = np.diff(positions, axis=0) / self.dt
         return join(positions, velocities)
