@@ -120,6 +120,22 @@ def test_self_paced_thresholds_literal_is_eq_2_9() -> None:
     assert seen == [256.0, 64.0, 25.0, 32.0, 128.0, 25.0]
 
 
+def test_pid_and_schedule_state_dicts_round_trip() -> None:
+    a = PIDLagrange(cost_limit=10.0, derivative_delay=3)
+    for cost in (30.0, 5.0, 12.0):
+        a.update(cost)
+    b = PIDLagrange(cost_limit=10.0, derivative_delay=3)
+    b.load_state_dict(a.state_dict())
+    assert [a.update(c) for c in (20.0, 1.0)] == [b.update(c) for c in (20.0, 1.0)]
+    s1 = SelfPacedThresholds(target=25.0)
+    s1.update(100.0)
+    s2 = SelfPacedThresholds(target=25.0)
+    s2.load_state_dict(s1.state_dict())
+    assert s2.current == s1.current == 128.0
+    with pytest.raises(ValueError, match="thresholds"):
+        SelfPacedThresholds(target=10.0).load_state_dict(s1.state_dict())
+
+
 def test_self_paced_thresholds_drop_values_below_target_and_reject_bad_rule() -> None:
     assert SelfPacedThresholds(target=40.0, initial_exponent=6, num_thresholds=4).thresholds == [
         64.0, 40.0,

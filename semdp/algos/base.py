@@ -306,14 +306,16 @@ class Algorithm(ABC):
                 last = self.epoch == self.total_epochs
                 if (checkpoint_every and self.epoch % checkpoint_every == 0) or last:
                     self.save_checkpoint(ckpt)
-                summary = (
-                    f"epoch {self.epoch}/{self.total_epochs} steps {self.env_steps} "
-                    f"ret {row.get('ep_return', math.nan):.2f} "
-                    f"cost {row.get('ep_cost', math.nan):.2f} "
-                    f"lambda {row.get('lagrange_multiplier', math.nan):.3f} "
-                    f"fps {row['fps']:.0f}"
-                )
-                logger.info(summary)
+                parts = [f"epoch {self.epoch}/{self.total_epochs}", f"steps {self.env_steps}"]
+                for key, label in (("ep_return", "ret"), ("ep_cost", "cost"),
+                                   ("lagrange_multiplier", "lambda"),
+                                   ("cost_threshold", "d"), ("eval_return", "eval_ret"),
+                                   ("eval_cost", "eval_cost")):
+                    value = row.get(key)
+                    if value is not None and not math.isnan(value):
+                        parts.append(f"{label} {value:.3g}")
+                parts.append(f"fps {row['fps']:.0f}")
+                logger.info(" ".join(parts))
                 bar.update(1)
                 metrics.update(env_steps=self.env_steps, wall_time_s=self.wall_time)
                 write_metrics(run_dir / "metrics.json", metrics)
