@@ -104,17 +104,31 @@ def test_planner_fixed_lambda_lm_is_also_safe(backend) -> None:
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_planner_escape_mode_does_not_get_closer(planners, backend) -> None:
-    start = np.array([0.0, 0.0])
-    inside, far = np.array([0.3, 0.1]), np.array([1.5, 1.5])
-    result = planners[(backend, False)].plan(start, [2.0, 0.0], [inside, far])
-    assert result.escape_mode and not result.feasible
-    start_distance = np.linalg.norm(start - inside)
-    distances = np.linalg.norm(result.waypoints - inside, axis=1)
-    assert distances.min() >= start_distance - 1e-6
-    assert np.linalg.norm(result.waypoints - far, axis=1).min() >= EPS - 1e-6
-    assert not result.fallback
-    assert distances[-1] > start_distance + 0.05  # it moves away from the violated obstacle
+@pytest.mark.parametrize("continuous", [False, True])
+@pytest.mark.parametrize(
+    "obstacles",
+    [
+        [[0.3, 0.1], [1.5, 1.5]],  # one violated, one clear
+        [[0.1, 0.0], [-0.1, 0.0]],  # between two violated ones (outward directions cancel)
+        [[0.3, 0.1], [-0.2, 0.45]],  # two violated ones
+        [[0.0, 0.0], [1.2, 0.0]],  # start exactly at a centre
+    ],
+)
+def test_planner_escape_mode_leaves_without_getting_closer(
+    planners, backend, continuous, obstacles
+) -> None:
+    start = np.zeros(2)
+    obstacles = np.array(obstacles)
+    result = planners[(backend, continuous)].plan(start, [2.0, 0.0], obstacles)
+    assert result.escape_mode and not result.feasible and not result.fallback
+    start_distances = np.linalg.norm(obstacles - start, axis=1)
+    violated = start_distances < EPS
+    distances = (segment_distances if continuous else point_distances)(result.waypoints, obstacles)
+    assert np.all(distances[:, violated] >= start_distances[violated] - 1e-6)
+    assert np.all(distances[:, ~violated] >= EPS - 1e-6)
+    # it leaves: the deepest violation at the end is smaller than at the start
+    depth_end = EPS - np.linalg.norm(result.waypoints[-1] - obstacles[violated], axis=1)
+    assert np.max(depth_end) < np.max(EPS - start_distances[violated]) - 0.05
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

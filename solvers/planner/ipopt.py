@@ -9,8 +9,8 @@ with ``n_ij^T (x_i - o_j) >= c_j + delta``, ``n_ij^T (x_{i+1} - o_j) >= c_j + de
 
 One parametric ``nlpsol`` is built (SX) per compiled obstacle-slot count and cached; unused slots
 and pairs a waypoint cannot reach get infinite bounds, so the structure never changes. Escape mode
-(start inside a clearance) relaxes those obstacles' rows to "no closer than the start" and adds
-``lambda_max sum_i (c_j^2 - ||x_i - o_j||^2)_+^2`` to the objective to push the plan outwards.
+(start inside a clearance) relaxes those obstacles' rows to "no closer than the start"; the
+planner then aims at a point outside them instead of the subgoal.
 """
 
 from __future__ import annotations
@@ -60,13 +60,10 @@ def build_ipopt(
     continuous: bool,
     ipopt_options: dict[str, object],
 ) -> IpoptProgram:
-    """Build the parametric NLP.
-
-    ``p = [g (2), centres (2 n_slots), c (n_slots), w_esc (n_slots)]``.
-    """
+    """Build the parametric NLP; ``p = [g (2), centres (2 n_slots, row-major)]``."""
     n = prior.n_waypoints - 1
     z = ca.SX.sym("z", prior.n_var)
-    p = ca.SX.sym("p", 2 + 4 * n_slots)
+    p = ca.SX.sym("p", 2 + 2 * n_slots)
     goal = p[0:2]
     positions = [ca.vertcat(0.0, 0.0)] + [z[2 * i : 2 * i + 2] for i in range(n)]
     h = ca.sumsqr(ca.mtimes(ca.DM(prior.W), z))
@@ -75,13 +72,8 @@ def build_ipopt(
     normals: list[ca.SX] = []
     for j in range(n_slots):
         centre = p[2 + 2 * j : 4 + 2 * j]
-        radius = p[2 + 2 * n_slots + j]
-        escape_weight = p[2 + 3 * n_slots + j]
-        for i in range(1, n + 1):
-            sq = ca.sumsqr(positions[i] - centre)
-            objective += escape_weight * ca.fmax(0.0, radius**2 - sq) ** 2
-            if not continuous:
-                constraints.append(sq)
+        if not continuous:
+            constraints.extend(ca.sumsqr(positions[i] - centre) for i in range(1, n + 1))
         if continuous:
             for i in range(n):
                 normal = ca.SX.sym(f"n_{j}_{i}", 2)
@@ -117,14 +109,10 @@ def solve_ipopt(
     z0: np.ndarray,
     goal: np.ndarray,
     centres: np.ndarray,
-    clearances: np.ndarray,
     required: np.ndarray,
-    escape: np.ndarray,
     reach_radii: np.ndarray,
     *,
     sigma_smooth: float,
-    margin: float,
-    escape_weight: float,
 ) -> IpoptOutcome:
     """Solve for the selected obstacles (arrays of length <= ``program.n_slots``).
 
@@ -132,31 +120,25 @@ def solve_ipopt(
         program: Built solver.
         prior: GP prior (for the sizes).
         z0: Initial guess of the trajectory variables.
-        goal, centres, clearances: Start-relative subgoal, obstacle centres and clearances.
-        required: Distance every waypoint must keep (the clearance, or for escape obstacles the
-            start's own distance).
-        escape: Escape flag per obstacle.
+        goal: Start-relative target.
+        centres: Start-relative obstacle centres.
+        required: Distance every waypoint (segment) must keep from each obstacle, margins
+            included.
         reach_radii: Per-waypoint reach bound (N,); pairs that cannot come closer than the
             required distance get infinite bounds.
         sigma_smooth: Smoothness budget.
-        margin: Distance added to every required clearance (absorbs IPOPT's tolerance).
-        escape_weight: Weight of the escape push (lambda_max).
     """
     n = prior.n_waypoints - 1
     m = len(centres)
     slots = program.n_slots
     centres_p = np.zeros((slots, 2))
     centres_p[:m] = centres
-    clear_p = np.zeros(slots)
-    clear_p[:m] = clearances
-    esc_p = np.zeros(slots)
-    esc_p[:m] = np.where(escape, escape_weight, 0.0)
-    params = np.concatenate([goal, centres_p.ravel(), clear_p, esc_p])
+    params = np.concatenate([goal, centres_p.ravel()])
     need = np.zeros(slots)
-    need[:m] = np.where(escape, required * (1.0 - 1e-9), required + margin)
+    need[:m] = np.maximum(required, 0.0)
     distance = np.hypot(centres_p[:, 0], centres_p[:, 1])
     active = np.zeros(slots, dtype=bool)
-    active[:m] = True
+    active[:m] = required > 0.0  # a row ||x - o||^2 >= 0 is vacuous (and degenerate at x = o)
     lbg = [np.array([-np.inf])]
     ubg = [np.array([sigma_smooth])]
     x0 = np.zeros(program.n_var)

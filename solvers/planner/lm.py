@@ -72,7 +72,8 @@ def build_lm_functions(
     ``band[i, d] = (J_s^T J_s)[i + d, i]`` (``J_s``: all rows but the budget row, whose gradient is
     ``a``), so ``J^T J = band matrix + a a^T``.
 
-    ``p = [g (2), centres (2 n_slots, row-major), clearances (n_slots), lambda, lambda_budget]``;
+    ``p = [g (2), centres (2 n_slots, row-major), clearances (n_slots), lambda, lambda_budget,
+    goal_scale]``;
     a clearance of 0 disables its slot (the hinge is then identically zero). The solve uses
     ``lambda_budget = lambda`` (one multiplier, App. B.2.3); a smaller value only serves to rank
     initial guesses.
@@ -83,14 +84,18 @@ def build_lm_functions(
     perm = w_order(prior.n_waypoints)
     inverse = np.argsort(perm)
     z = ca.vertcat(*[w[int(k)] for k in inverse])  # z[k] = w[inverse[k]]
-    p = ca.SX.sym("p", 4 + 3 * n_slots)
+    p = ca.SX.sym("p", 5 + 3 * n_slots)
     goal = p[0:2]
     lam = p[2 + 3 * n_slots]
     lam_budget = p[3 + 3 * n_slots]
+    goal_scale = p[4 + 3 * n_slots]
     positions = [ca.vertcat(0.0, 0.0)] + [z[2 * i : 2 * i + 2] for i in range(n)]
     smooth_res = ca.mtimes(ca.DM(prior.W), z)
     h = ca.sumsqr(smooth_res)
-    residuals = [positions[-1] - goal, np.sqrt(weights.smooth_regulariser) * smooth_res]
+    residuals = [
+        goal_scale * (positions[-1] - goal),
+        np.sqrt(weights.smooth_regulariser) * smooth_res,
+    ]
     obstacle_scale = ca.sqrt(lam * weights.obstacle)
     for j in range(n_slots):
         centre = p[2 + 2 * j : 4 + 2 * j]

@@ -22,6 +22,7 @@ from solvers.planner.ipopt import IPOPT_OPTIONS, IpoptProgram, build_ipopt, solv
 from solvers.planner.lm import LMKernel, LMWeights, build_lm_functions, levenberg_marquardt
 from solvers.planner.problem import (
     BACKENDS,
+    ESCAPE_TOLERANCE,
     PreparedProblem,
     bucket_size,
     build_gp_prior,
@@ -85,7 +86,6 @@ class SafeTrajectoryPlanner:
         ipopt_options: IPOPT options merged over :data:`IPOPT_OPTIONS`.
         scp_max_iterations: QP solves at most.
         scp_trust_region: Half-width of the SCP trust-region box.
-        escape_weight: Weight of the outward push in IPOPT's escape mode (lambda_max's role).
     """
 
     def __init__(
@@ -113,7 +113,6 @@ class SafeTrajectoryPlanner:
         ipopt_options: dict[str, object] | None = None,
         scp_max_iterations: int = 30,
         scp_trust_region: float = 1.0,
-        escape_weight: float = 1024.0,
     ) -> None:
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
@@ -136,7 +135,6 @@ class SafeTrajectoryPlanner:
             "smooth_weight": smooth_weight,
             "feasibility_margin": feasibility_margin,
             "lm_margin": lm_margin,
-            "escape_weight": escape_weight,
         }
         for name, value in non_negative.items():
             if not np.isfinite(value) or value < 0:
@@ -175,7 +173,6 @@ class SafeTrajectoryPlanner:
         self.ipopt_options = dict(IPOPT_OPTIONS, **(ipopt_options or {}))
         self.scp_max_iterations = int(scp_max_iterations)
         self.scp_trust_region = float(scp_trust_region)
-        self.escape_weight = float(escape_weight)
         self.prior = build_gp_prior(self.n_waypoints, self.dt)
         self.reach_radii = self.prior.reach_radii(self.sigma_smooth)
         #: Farthest any waypoint of an admissible plan can get from the start (m).
@@ -321,10 +318,26 @@ class SafeTrajectoryPlanner:
         velocities[1:] = np.diff(positions, axis=0) / self.dt
         return join(positions, velocities)
 
+    def _solver_need(self, prep: PreparedProblem) -> np.ndarray:
+        """Distances asked of IPOPT / SCP for the selected obstacles: the clearance plus the
+        feasibility margin, or in escape mode the start's distance less a tenth of the escape
+        tolerance (the certificate allows the full tolerance)."""
+        sel = prep.selected
+        return np.where(
+            prep.escape[sel],
+            prep.start_distances[sel] - 0.1 * ESCAPE_TOLERANCE,
+            prep.required[sel] + self.feasibility_margin,
+        )
+
+    def _target(self, prep: PreparedProblem) -> np.ndarray:
+        """The start-relative point the plan aims at: the subgoal, or the escape target."""
+        return self._escape_target(prep) if prep.escape_mode else prep.goal
+
     def _guess(self, prep: PreparedProblem) -> np.ndarray:
         sel = prep.selected
         return detour_guess(
-            self.prior, prep.goal, prep.centres[sel], prep.clearances[sel], reach=self.reach
+            self.prior, self._target(prep), prep.centres[sel], prep.clearances[sel],
+            reach=self.reach,
         )
 
     # ------------------------------------------------------------------ LM
@@ -344,8 +357,19 @@ class SafeTrajectoryPlanner:
         centres = np.zeros((n_slots, 2))
         centres[:m] = prep.centres[sel]
         radii = np.zeros(n_slots)
-        radii[:m] = prep.clearances[sel] + self.lm_margin
-        return np.concatenate([prep.goal, centres.ravel(), radii, [lam, lam * budget_factor]])
+        # escape obstacles: "no closer than the start", without margin (the first waypoints
+        # cannot get farther than the start at once; the target pulls away from them anyway)
+        radii[:m] = np.where(
+            prep.escape[sel],
+            prep.start_distances[sel] - 0.1 * ESCAPE_TOLERANCE,
+            prep.required[sel] + self.lm_margin,
+        )
+        # escape mode: the target is outside the violated clearances and weighs as much as the
+        # constraints (lambda_max), so the plan actually leaves
+        goal_scale = np.sqrt(lam) if prep.escape_mode else 1.0
+        return np.concatenate(
+            [self._target(prep), centres.ravel(), radii, [lam, lam * budget_factor, goal_scale]]
+        )
 
     def _solve_lm(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
         n_slots = bucket_size(len(prep.selected), self.max_obstacles)
@@ -391,8 +415,9 @@ class SafeTrajectoryPlanner:
         towards the start to fit the smoothness budget, and the stationary trajectory (the
         thesis' initialisation, hinge-free whenever the start is clear).
         """
-        distance = float(np.hypot(*prep.goal))
-        target = prep.goal if distance <= self.reach else prep.goal * (self.reach / distance)
+        goal = self._target(prep)
+        distance = float(np.hypot(*goal))
+        target = goal if distance <= self.reach else goal * (self.reach / distance)
         candidates = [np.zeros(self.prior.n_var), self.prior.goal_map @ target]
         if len(prep.selected):
             detour = self._guess(prep)
@@ -423,19 +448,8 @@ class SafeTrajectoryPlanner:
     def _solve_ipopt(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
         sel = prep.selected
         n_slots = bucket_size(len(sel), self.max_obstacles)
-        args = (
-            prep.goal,
-            prep.centres[sel],
-            prep.clearances[sel],
-            prep.required[sel],
-            prep.escape[sel],
-            self.reach_radii,
-        )
-        kwargs = {
-            "sigma_smooth": self.sigma_smooth,
-            "margin": self.feasibility_margin,
-            "escape_weight": self.escape_weight,
-        }
+        args = (self._target(prep), prep.centres[sel], self._solver_need(prep), self.reach_radii)
+        kwargs = {"sigma_smooth": self.sigma_smooth}
         iterations = 0
         if self.ipopt_first_max_iter > 0 and not prep.escape_mode:
             z0 = warm if warm is not None else self._guess(prep)
@@ -461,11 +475,10 @@ class SafeTrajectoryPlanner:
 
     def _solve_scp(self, prep: PreparedProblem, warm: np.ndarray | None) -> _BackendPlan:
         sel = prep.selected
-        goal = prep.goal
-        need = np.where(prep.escape[sel], prep.required[sel] * (1.0 - 1e-9),
-                        prep.required[sel] + self.feasibility_margin)
-        if prep.escape_mode:
-            goal = self._escape_target(prep)
+        need = self._solver_need(prep)
+        exact_need = np.where(
+            prep.escape[sel], need, prep.required[sel] + 0.5 * self.feasibility_margin
+        )
         z0 = np.zeros(self.prior.n_var)
         guess = self._guess(prep)
         candidates = [c for c in (warm, guess) if c is not None]
@@ -482,26 +495,34 @@ class SafeTrajectoryPlanner:
             program = self._scp_program(bucket_size(len(sel), self.max_obstacles))
         outcome = program.solve(
             z0,
-            goal,
+            self._target(prep),
             prep.centres[sel],
             need,
             sigma_smooth=self.sigma_smooth,
             smooth_regulariser=self.smooth_weight,
             trust_region=self.scp_trust_region,
             max_iterations=self.scp_max_iterations,
-            margin=self.feasibility_margin,
+            exact_need=exact_need,
         )
         return _BackendPlan(outcome.z, outcome.status, outcome.iterations)
 
     def _escape_target(self, prep: PreparedProblem) -> np.ndarray:
-        """A point outside the violated clearances, straight out from their centres."""
-        outward = np.zeros(2)
-        for j in np.flatnonzero(prep.escape):
-            direction = -prep.centres[j]
-            norm = float(np.hypot(*direction))
-            direction = np.array([1.0, 0.0]) if norm < 1e-12 else direction / norm
-            outward += direction * (prep.clearances[j] - prep.start_distances[j] + 0.1)
-        return outward
+        """Escape mode's target (start-relative): 0.1 m outside the violated clearances.
+
+        The direction is the sum of the outward directions from the violated obstacles' centres,
+        weighted by how deep the start is inside each; when they cancel (a start between two
+        obstacles) it is perpendicular to the first one's, and (1, 0) at an exact centre.
+        """
+        violated = np.flatnonzero(prep.escape)
+        depth = prep.clearances[violated] - prep.start_distances[violated]
+        outward = -prep.centres[violated]
+        norms = np.hypot(outward[:, 0], outward[:, 1])
+        units = np.where(norms[:, None] > 1e-9, outward / np.maximum(norms, 1e-9)[:, None],
+                         np.array([1.0, 0.0]))
+        direction = (units * depth[:, None]).sum(axis=0)
+        if np.hypot(*direction) < 1e-6 * max(float(depth.max()), 1e-9):
+            direction = np.array([-units[0, 1], units[0, 0]])
+        return direction / np.hypot(*direction) * (float(depth.max()) + 0.1)
 
     # ------------------------------------------------------------------ certificate
     def _clear_of(

@@ -24,6 +24,9 @@ import scipy.linalg as sla
 
 #: Names of the solver backends.
 BACKENDS: tuple[str, ...] = ("ipopt", "lm", "scp")
+#: Escape mode: a waypoint may be at most this much (m) closer to a violated obstacle than the
+#: start is (the solvers are asked for a tenth of it, so their tolerances fit in between).
+ESCAPE_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -139,7 +142,7 @@ class PreparedProblem:
             nearest first, at most ``max_obstacles``).
         escape: Boolean per obstacle: the start is inside its clearance (escape mode).
         required: Clearance each waypoint must keep per obstacle: ``clearances``, or the start's
-            own distance for escape obstacles ("do not get closer").
+            own distance (less ``ESCAPE_TOLERANCE``) for escape obstacles ("do not get closer").
     """
 
     start: np.ndarray
@@ -222,7 +225,7 @@ def prepare(
     candidates = np.flatnonzero(gaps <= reach)
     order = candidates[np.argsort(gaps[candidates], kind="stable")]
     selected = order[:max_obstacles]
-    required = np.where(escape, start_distances, clearances)
+    required = np.where(escape, start_distances - ESCAPE_TOLERANCE, clearances)
     return PreparedProblem(
         start_arr, goal_arr, centres, clearances, selected, escape, required, start_distances
     )

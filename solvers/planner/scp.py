@@ -148,7 +148,7 @@ class ScpProgram:
         smooth_regulariser: float,
         trust_region: float,
         max_iterations: int,
-        margin: float = 0.0,
+        exact_need: np.ndarray | None = None,
         tolerance: float = 1e-7,
     ) -> ScpOutcome:
         """Run SCP from the feasible ``z0`` (every pair keeps ``need``; ``h(z0) <= sigma``).
@@ -162,8 +162,9 @@ class ScpProgram:
             smooth_regulariser: rho (must match the value the program was built with).
             trust_region: Half-width of the box trust region on every variable.
             max_iterations: QP solves at most.
-            margin: The part of ``need`` that is a safety margin: QP solutions that violate
-                ``need - margin / 2`` exactly are cut back.
+            exact_need: Distances the exact check enforces (default ``need``); QP solutions
+                that violate them are cut back. Set it a little below ``need`` where ``need``
+                includes a margin for OSQP's tolerance.
             tolerance: Stop when the step's infinity norm falls below this.
         """
         prior = self.prior
@@ -187,7 +188,7 @@ class ScpProgram:
         # result does not depend on the problems solved before
         self._dual = np.zeros(self.n_rows)
         self.solver.update_settings(rho=self._rho)
-        exact_need = need - 0.5 * margin
+        exact_need = need if exact_need is None else exact_need
         status = "max_iter"
         converged = False
         iterations = 0
