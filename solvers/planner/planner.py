@@ -489,17 +489,13 @@ class SafeTrajectoryPlanner:
             if self._clear_of(prep, candidate, sel, need):
                 z0 = candidate
                 break
-        if len(sel) == 0:
-            program = self._scp_program(0)
-        else:
-            program = self._scp_program(bucket_size(len(sel), self.max_obstacles))
+        program = self._scp_program(bucket_size(len(sel), self.max_obstacles))
         outcome = program.solve(
             z0,
             self._target(prep),
             prep.centres[sel],
             need,
             sigma_smooth=self.sigma_smooth,
-            smooth_regulariser=self.smooth_weight,
             trust_region=self.scp_trust_region,
             max_iterations=self.scp_max_iterations,
             exact_need=exact_need,

@@ -67,6 +67,7 @@ class ScpProgram:
         settings: dict[str, object] | None = None,
     ) -> None:
         self.prior = prior
+        self.smooth_regulariser = smooth_regulariser
         self.n_slots = n_slots
         self.continuous = continuous
         n = prior.n_waypoints - 1
@@ -145,7 +146,6 @@ class ScpProgram:
         need: np.ndarray,
         *,
         sigma_smooth: float,
-        smooth_regulariser: float,
         trust_region: float,
         max_iterations: int,
         exact_need: np.ndarray | None = None,
@@ -159,7 +159,6 @@ class ScpProgram:
             centres: Selected obstacle centres (m <= n_slots, 2), start-relative.
             need: Distance each waypoint (segment) must keep from each selected obstacle.
             sigma_smooth: Smoothness budget.
-            smooth_regulariser: rho (must match the value the program was built with).
             trust_region: Half-width of the box trust region on every variable.
             max_iterations: QP solves at most.
             exact_need: Distances the exact check enforces (default ``need``); QP solutions
@@ -175,13 +174,11 @@ class ScpProgram:
         q = -2.0 * (self.goal_select.T @ goal)
         self.solver.update(q=q)
         z = z0.copy()
-        centres_p = np.zeros((self.n_slots, 2))
-        centres_p[:m] = centres
 
         def objective(vec: np.ndarray) -> float:
             r = W @ vec
             end = vec[2 * (n - 1) : 2 * n] - goal
-            return float(end @ end + smooth_regulariser * (r @ r))
+            return float(end @ end + self.smooth_regulariser * (r @ r))
 
         current = objective(z)
         # every solve starts from the same state (duals and OSQP's adaptive step size), so a
