@@ -27,9 +27,9 @@ IPOPT_OPTIONS: dict[str, object] = {
     "print_level": 0,
     "sb": "yes",
     "linear_solver": "mumps",
-    "tol": 1e-6,
+    "tol": 1e-4,  # 9 instead of 13 median iterations, same plans; feasibility has its own tol
     "constr_viol_tol": 1e-7,
-    "acceptable_tol": 1e-4,
+    "acceptable_tol": 1e-3,
     "acceptable_iter": 5,
     "max_iter": 200,
     "max_wall_time": 1.0,
