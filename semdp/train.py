@@ -103,6 +103,8 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
     if not algo_name:
         algo_name, env_name = _choices(cfg)
     meta = {"algo": algo_name, "env": env_name, "seed": int(cfg.seed)}
+    if cfg.get("label"):  # method label for semdp-report (e.g. "Ours w/ gt")
+        meta["label"] = str(cfg.label)
     if not resume:
         with open_dict(cfg):
             cfg.algo_name, cfg.env_name = algo_name, env_name
@@ -114,12 +116,20 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
             algo.load_checkpoint(run_dir / "checkpoints" / CHECKPOINT_NAME)
             logger.info("resuming %s at epoch %d (%d env steps)", run_dir, algo.epoch,
                         algo.env_steps)
-        return algo.learn(
+        metrics = algo.learn(
             total_steps=int(cfg.total_steps), run_dir=run_dir,
             eval_every=int(cfg.eval_every), eval_episodes=int(cfg.eval_episodes),
             final_eval_episodes=int(cfg.final_eval_episodes),
             checkpoint_every=int(cfg.checkpoint_every), resume=bool(resume), metadata=meta,
         )
+        # Optional post-training hook (e.g. the SEMDP timing split, curves and evaluation GIF):
+        # `post_train` (top level or in the env config), a `_partial_` callable
+        # hook(algo=, cfg=, run_dir=, metrics=) -> metrics.
+        hook_cfg = cfg.get("post_train") or cfg.env.get("post_train")
+        if hook_cfg:
+            metrics = instantiate(hook_cfg)(algo=algo, cfg=cfg, run_dir=run_dir, metrics=metrics)
+            write_metrics(run_dir / "metrics.json", metrics)
+        return metrics
     except Exception as exc:
         metrics = {
             "status": "failed", "error": f"{type(exc).__name__}: {exc}", **meta,
