@@ -102,7 +102,7 @@ class SAC(Algorithm):
     @property
     def alpha(self) -> float:
         """Current entropy temperature."""
-        return float(self.log_alpha.exp())
+        return self.log_alpha.detach().exp().item()
 
     def predict(self, obs: npt.ArrayLike, deterministic: bool = True) -> npt.NDArray[Any]:
         """tanh(mean) (or a sample), scaled to the env bounds."""
