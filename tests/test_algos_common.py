@@ -193,3 +193,30 @@ def test_speed_limit_env_costs_speeding_and_terminates_at_crash_speed() -> None:
     assert speeds[-1] == pytest.approx(2.0)
     assert costs == [float(v > 1.0) for v in speeds]
     assert math.isclose(sum(costs), sum(v > 1.0 for v in speeds))
+
+
+class _TimeCritic(torch.nn.Module):
+    """V(obs) = 10 * (time feature): distinguishes a final observation from a reset one."""
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return 10.0 * obs[:, 1]
+
+
+def test_rollout_bootstraps_time_outs_with_the_final_observation_and_not_terminations() -> None:
+    from semdp.algos.ppo import PPO
+
+    envs = make_vec_env({"id": "semdp/SpeedLimit-v0", "num_envs": 2}, seed=0)
+    algo = PPO(envs, None, seed=0, steps_per_epoch=500, obs_normalize=False)
+    algo.critic_r = _TimeCritic()
+    algo.critic_c = _TimeCritic()
+    algo.collect_rollout()
+    b = algo.buffer
+    timed_out = (b.episode_end == 1) & (b.terminated == 0)
+    assert timed_out.sum() >= 2  # both envs hit the 100-step limit at least once
+    np.testing.assert_allclose(b.next_values_r[timed_out], 10.0, rtol=1e-6)  # V(t/T = 1)
+    np.testing.assert_allclose(b.next_values_c[timed_out], 10.0, rtol=1e-6)
+    inner = b.episode_end[:-1] == 0
+    np.testing.assert_allclose(b.next_values_r[:-1][inner], b.values_r[1:][inner])
+    batch = algo.compute_batch()
+    assert torch.isfinite(batch.adv_r).all()
+    assert abs(float(batch.adv_c.mean())) < 1e-6  # cost advantages are centred
