@@ -1,0 +1,245 @@
+"""The Safety-Embedded MDP as a gymnasium wrapper (thesis §3.5.1, Alg. 2; SPEC §4.2)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from semdp.embedded.follower import Follower, PolicyFollower, build_follower
+from semdp.embedded.perception import OBSTACLE_KINDS, perceive_obstacles
+from semdp.embedded.tracking import ego_to_world, select_tracking_index
+from semdp.paths import CONF_DIR
+
+#: Timing counters kept by :class:`SafetyEmbeddedEnv` (seconds, summed over its lifetime).
+TIMING_KEYS: tuple[str, ...] = ("perception_s", "plan_s", "follow_s", "sim_s")
+
+
+def build_planner(spec: Any, overrides: Mapping[str, Any] | None = None) -> Any:
+    """A planner from a name in ``conf/planner`` (``"lm"``, ``"lm_adaptive"``, ``"ipopt"``,
+    ``"scp"``, ``"straight"``), a config mapping with ``_target_`` or an object with ``plan``;
+    ``overrides`` replace constructor keys of a name or a mapping."""
+    if hasattr(spec, "plan"):
+        if overrides:
+            raise ValueError("planner_kwargs apply to a planner name or config, not an object")
+        return spec
+    from hydra.utils import instantiate
+    from omegaconf import OmegaConf
+
+    if spec == "straight":  # obstacle-blind ablation planner ("PPO Lag + SAC")
+        from semdp.embedded.straight import StraightLinePlanner
+
+        return StraightLinePlanner(**dict(overrides or {}))
+    if isinstance(spec, str):
+        path = CONF_DIR / "planner" / f"{spec}.yaml"
+        if not path.is_file():
+            names = sorted(p.stem for p in (CONF_DIR / "planner").glob("*.yaml"))
+            raise ValueError(f"unknown planner {spec!r}; valid names: {[*names, 'straight']}")
+        spec = OmegaConf.load(path)
+    if isinstance(spec, Mapping) or OmegaConf.is_config(spec):
+        node = OmegaConf.merge(OmegaConf.create(dict(spec) if not OmegaConf.is_config(spec)
+                                                else spec), dict(overrides or {}))
+        return instantiate(node)
+    raise ValueError(f"planner must be a conf/planner name, a config or a planner, got {spec!r}")
+
+
+class SafetyEmbeddedEnv(gym.Wrapper):
+    """Subgoal action space over a Safety Gym replica env (Alg. 2).
+
+    One step of this env: the action ``a`` in [-1, 1]^2 becomes the subgoal
+    ``p + R(theta) (subgoal_scale * a)`` in the robot's ego frame (+-2 m by default); the planner
+    plans a safe trajectory from the robot root ``p`` to it around the perceived obstacles
+    (Eq. 3.3); the follower tracks it for ``k`` low-level steps (App. B.2.2). The reward is the
+    sum of the ``k`` inner rewards (the SEMDP reward r'); the inner costs are summed into
+    ``info["cost"]`` for logging only -- the high level is trained on reward, safety is the
+    planner's job (§3.5.1).
+
+    Episode ends and goal resampling inside the window (documented difference from the thesis'
+    code, which drops such transitions from its replay buffer and never bootstraps them): the
+    window stops at the inner step that terminated or truncated and the wrapper returns that
+    step's flags, so our SAC stores the transition and bootstraps a time-out as for any env. The
+    replica's 1000-step episodes are a multiple of k = 10, so a time-out always falls on a window
+    boundary. A goal met inside the window (the inner env places a new goal and goes on) keeps
+    the window running; the goal bonus is part of the summed reward and ``info["goal_met"]`` is
+    set. Dropping those transitions would drop most of the reward signal at the laptop budget.
+
+    ``info`` carries the plan and its certificate: ``plan`` (the planner's result),
+    ``plan_feasible``, ``plan_fallback``, ``plan_escape``, ``plan_min_clearance``, ``subgoal``,
+    ``n_obstacles``, the step's timings ``perception_s``, ``plan_s``, ``follow_s``, ``sim_s``
+    and ``low_level_steps``. The lifetime sums of the timings are in :attr:`timing`.
+
+    Args:
+        env: a ``sims`` Safety Gym env (any wrappers; the unwrapped env provides the pose,
+            obstacle and LiDAR accessors).
+        planner: a planner object (``plan(start, subgoal, obstacles)`` returning a result with
+            ``waypoints``), a ``conf/planner`` name or a config mapping; a name or a mapping is
+            instantiated here, so every sub-env of a vector env has its own planner (and its
+            own receding-horizon warm start).
+        follower: a :class:`Follower`, ``"auto"`` (the committed follower of the env's robot:
+            SAC weights for Point and Car, the P-controller for Mass), a ``conf/follower`` name
+            or a config mapping.
+        planner_kwargs: constructor overrides for a planner given by name or config (e.g.
+            ``{"clearance": 0.6, "continuous": True}``).
+        k: low-level steps per high-level step (thesis: 10).
+        subgoal_scale: metres per unit action in the ego frame (thesis code: 2.0).
+        d_min: tracking-point look-ahead (App. B.2.2: 0.2 m).
+        perception: ``"lidar"`` (default, reconstructed from the LiDAR bins) or ``"gt"``.
+        obstacle_kinds: object types the planner avoids.
+        brake_steps: the last ``brake_steps`` low-level steps of each window track the robot's
+            current position (the follower brakes), so each window ends slow; 0 = off (thesis).
+        draw_plan: pass the plan and subgoal to the env's renderer overlay.
+        frame_every: with ``render_mode="rgb_array"``, record a frame every this many low-level
+            steps into :attr:`frames` (0 = off); used for the evaluation GIF.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        planner: Any = "lm",
+        follower: Any = "auto",
+        planner_kwargs: Mapping[str, Any] | None = None,
+        k: int = 10,
+        subgoal_scale: float = 2.0,
+        d_min: float = 0.2,
+        perception: str = "lidar",
+        obstacle_kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
+        brake_steps: int = 0,
+        draw_plan: bool = True,
+        frame_every: int = 0,
+    ) -> None:
+        super().__init__(env)
+        if k < 1:
+            raise ValueError(f"k (low-level steps per subgoal) must be >= 1, got {k}")
+        if not subgoal_scale > 0:
+            raise ValueError(f"subgoal_scale must be > 0, got {subgoal_scale}")
+        if perception not in ("lidar", "gt"):
+            raise ValueError(f"perception must be 'lidar' or 'gt', got {perception!r}")
+        if not 0 <= brake_steps < k:
+            raise ValueError(f"brake_steps must be in [0, k={k}), got {brake_steps}")
+        if frame_every < 0:
+            raise ValueError(f"frame_every must be >= 0, got {frame_every}")
+        base = env.unwrapped
+        for attr in ("robot_position", "robot_heading", "obstacles", "obs_slices"):
+            if not hasattr(type(base), attr) and not hasattr(base, attr):
+                raise ValueError(
+                    f"SafetyEmbeddedEnv needs a sims Safety Gym env (missing {attr!r}); "
+                    f"got {base!r}"
+                )
+        self.planner = build_planner(planner, planner_kwargs)
+        self.follower: Follower = build_follower(follower, getattr(base, "robot_name", None))
+        self.k = int(k)
+        self.subgoal_scale = float(subgoal_scale)
+        self.d_min = float(d_min)
+        self.perception = perception
+        self.obstacle_kinds = tuple(obstacle_kinds)
+        self.brake_steps = int(brake_steps)
+        self.draw_plan = draw_plan
+        self.frame_every = int(frame_every)
+        self.frames: list[np.ndarray] = []
+        self.timing: dict[str, float] = dict.fromkeys(TIMING_KEYS, 0.0)
+        self.high_level_steps = 0
+        self.low_level_steps = 0
+        if isinstance(self.follower, PolicyFollower):
+            self.follower.bind(base.obs_slices)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self._obs: np.ndarray | None = None
+        self._fresh = True
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Reset the inner env and remember its observation for perception."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._obs = obs
+        self._fresh = True  # no warm start from the previous episode's plan
+        self._record_frame()
+        return obs, info
+
+    def _record_frame(self) -> None:
+        if self.frame_every and getattr(self.env.unwrapped, "render_mode", None) == "rgb_array":
+            self.frames.append(self.env.unwrapped.render())
+
+    def subgoal_of(self, action: np.ndarray) -> np.ndarray:
+        """World-frame subgoal for a high-level action (ego frame, +-subgoal_scale metres)."""
+        base = self.env.unwrapped
+        offset = ego_to_world(self.subgoal_scale * np.asarray(action, float), base.robot_heading)
+        return np.asarray(base.robot_position, dtype=np.float64) + offset
+
+    def step(self, action):
+        """Plan to the subgoal, follow the plan for k steps, return the summed reward."""
+        if self._obs is None:
+            raise RuntimeError("call reset() before step()")
+        action = np.asarray(action, dtype=np.float64).reshape(-1)
+        if action.shape != (2,) or not np.all(np.isfinite(action)):
+            raise ValueError(f"SEMDP action must be 2 finite numbers, got {action!r}")
+        action = np.clip(action, -1.0, 1.0)
+        base = self.env.unwrapped
+
+        t0 = time.perf_counter()
+        start = np.asarray(base.robot_position, dtype=np.float64).copy()
+        subgoal = self.subgoal_of(action)
+        obstacles = perceive_obstacles(base, self._obs, self.perception, self.obstacle_kinds)
+        t1 = time.perf_counter()
+        plan = self.planner.plan(start, subgoal, obstacles, warm_start=not self._fresh)
+        t2 = time.perf_counter()
+        self._fresh = False
+        waypoints = np.asarray(plan.waypoints)
+        if self.draw_plan and hasattr(base, "set_overlay"):
+            base.set_overlay(waypoints=waypoints, subgoal=subgoal)
+
+        total_reward, total_cost, goal_met = 0.0, 0.0, False
+        cost_terms: dict[str, float] = {}
+        follow_time = sim_time = 0.0
+        index, steps = 0, 0
+        obs, terminated, truncated, info = self._obs, False, False, {}
+        for step in range(self.k):
+            t3 = time.perf_counter()
+            position = base.robot_position
+            if step >= self.k - self.brake_steps:
+                target = position
+            else:
+                index = select_tracking_index(waypoints, position, index, self.d_min)
+                target = waypoints[index]
+            low_action = self.follower.act(obs, position, base.robot_heading, target)
+            t4 = time.perf_counter()
+            obs, reward, terminated, truncated, info = self.env.step(low_action)
+            sim_time += time.perf_counter() - t4
+            follow_time += t4 - t3
+            steps += 1
+            total_reward += float(reward)
+            total_cost += float(info.get("cost", 0.0))
+            for key, value in info.items():
+                if key.startswith("cost_"):
+                    cost_terms[key] = cost_terms.get(key, 0.0) + float(value)
+            goal_met = goal_met or bool(info.get("goal_met", False))
+            if self.frame_every and (self.low_level_steps + steps) % self.frame_every == 0:
+                self._record_frame()
+            if terminated or truncated:
+                break
+        self._obs = obs
+        self.high_level_steps += 1
+        self.low_level_steps += steps
+        step_timing = {
+            "perception_s": t1 - t0, "plan_s": t2 - t1, "follow_s": follow_time, "sim_s": sim_time,
+        }
+        for key, value in step_timing.items():
+            self.timing[key] += value
+
+        out = {key: value for key, value in info.items() if not key.startswith("cost")}
+        out.update(cost_terms)
+        out.update(
+            cost=total_cost,
+            goal_met=goal_met,
+            plan=plan,
+            subgoal=subgoal,
+            n_obstacles=len(obstacles),
+            plan_feasible=bool(getattr(plan, "feasible", True)),
+            plan_fallback=bool(getattr(plan, "fallback", False)),
+            plan_escape=bool(getattr(plan, "escape_mode", False)),
+            plan_min_clearance=float(getattr(plan, "min_clearance", np.inf)),
+            low_level_steps=steps,
+            **step_timing,
+        )
+        return obs, total_reward, terminated, truncated, out
+
