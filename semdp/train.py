@@ -130,7 +130,7 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
             metrics = instantiate(hook_cfg)(algo=algo, cfg=cfg, run_dir=run_dir, metrics=metrics)
             write_metrics(run_dir / "metrics.json", metrics)
         return metrics
-    except Exception as exc:
+    except (Exception, KeyboardInterrupt) as exc:  # record, then let the caller decide
         metrics = {
             "status": "failed", "error": f"{type(exc).__name__}: {exc}", **meta,
             "env_steps": algo.env_steps if algo else 0,
