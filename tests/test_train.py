@@ -163,3 +163,18 @@ def test_train_env_wrapper_node_is_applied_to_each_sub_env(
     assert float(algo.envs.single_action_space.high[0]) == 0.5
     assert float(algo.eval_envs.single_action_space.high[0]) == 0.25
     assert run(tiny_train("sac", f"env.wrapper={rescale}"), tmp_path)["status"] == "completed"
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [["algo/lagrange=pid"], ["algo.thresholds.rule=literal"], ["algo.lagrange.optimizer=sgd"]],
+    ids=["pid", "literal", "sgd-eq-2.10"],
+)
+def test_train_sp_ppo_lag_variants_run_through_the_app(
+    extra: list[str], tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    cfg = tiny_train("sp_ppo_lag", *extra)
+    assert run(cfg, tmp_path)["status"] == "completed"
+    rows = _rows(tmp_path)
+    assert all(float(r["lagrange_multiplier"]) >= 0.0 for r in rows)
+    assert all(r["cost_threshold"] != "" for r in rows)
