@@ -4,6 +4,7 @@ directory contract, seeded determinism, crash + resume identity, and fail-fast c
 from __future__ import annotations
 
 import csv
+import functools
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -83,15 +84,22 @@ def test_train_same_seed_gives_identical_progress(
     assert a != c
 
 
-@pytest.mark.parametrize(("algo", "cls"), [("ppo_lag", PPOLag), ("sac", SAC)])
+@pytest.mark.parametrize(
+    ("algo", "cls", "env"),
+    [("ppo_lag", PPOLag, "speed_limit"), ("sac", SAC, "speed_limit"),
+     ("ppo_lag", PPOLag, "point_goal1")],
+    ids=["ppo_lag", "sac", "ppo_lag-pymunk"],
+)
 def test_train_resume_after_crash_matches_uninterrupted_run(
     algo: str,
     cls: type,
+    env: str,
     tiny_train: Callable[..., DictConfig],
     tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    cfg = tiny_train(algo, "checkpoint_every=1")
+    tiny_train = functools.partial(tiny_train, algo, f"env={env}")  # type: ignore[assignment]
+    cfg = tiny_train("checkpoint_every=1")
     reference = run(cfg, tmp_path / "ref")
     original = cls.train_epoch
 
@@ -102,12 +110,12 @@ def test_train_resume_after_crash_matches_uninterrupted_run(
 
     monkeypatch.setattr(cls, "train_epoch", crash_in_epoch_3)
     with pytest.raises(RuntimeError, match="simulated crash"):
-        run(tiny_train(algo, "checkpoint_every=1"), tmp_path / "crashed")
+        run(tiny_train("checkpoint_every=1"), tmp_path / "crashed")
     failed = json.loads((tmp_path / "crashed" / "metrics.json").read_text())
     assert failed["status"] == "failed" and "simulated crash" in failed["error"]
     assert len(_rows(tmp_path / "crashed")) == 2  # partial CSV kept
     monkeypatch.setattr(cls, "train_epoch", original)
-    resumed_cfg = tiny_train(algo)
+    resumed_cfg = tiny_train()
     with open_dict(resumed_cfg):
         resumed_cfg.resume = str(tmp_path / "crashed")
     resumed = run(resumed_cfg, tmp_path / "ignored")
