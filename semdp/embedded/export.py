@@ -62,8 +62,27 @@ def export_run(run_dir: str | Path, out: str | Path) -> Path:
     if not hasattr(env, "sensor_names"):
         raise ValueError(f"{run_dir} was not trained on a GoalReachingEnv (env {cfg.env.id})")
     act_dim = int(env.action_space.shape[0])
-    state, hidden = actor_mean_state(ckpt["algo"]["actor"], act_dim)
+    algo_state = ckpt["algo"]
+    extra: dict[str, Any] = {}
+    if any(key.startswith("mean_net.") for key in algo_state["actor"]):
+        # on-policy Gaussian actor (the PPO-Lag low level of "SAC + PPO Lag"): mean net,
+        # observation normaliser, clipped (not squashed) mean action
+        state = {key.removeprefix("mean_net."): value for key, value in algo_state["actor"].items()
+                 if key.startswith("mean_net.")}
+        hidden = [int(v.shape[0]) for k, v in state.items() if k.endswith(".weight")][:-1]
+        norm = algo_state["normalizer"]
+        import numpy as np
+
+        extra = {
+            "activation": str(cfg.algo.get("activation", "tanh")), "output": "clip",
+            "obs_mean": np.asarray(norm["mean"], dtype=np.float32),
+            "obs_std": np.sqrt(np.asarray(norm["var"]) + 1e-8).astype(np.float32),
+            "obs_clip": float(cfg.algo.get("obs_clip", 5.0)),
+        }
+    else:
+        state, hidden = actor_mean_state(algo_state["actor"], act_dim)
     meta = {
+        **extra,
         "obs_dim": int(env.observation_space.shape[0]),
         "act_dim": act_dim,
         "hidden_sizes": hidden,

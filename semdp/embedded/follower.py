@@ -88,11 +88,9 @@ class PolicyFollower:
     """
 
     def __init__(self, weights: str | Path, sensor_slices: list[str] | None = None) -> None:
-        import torch
 
         from semdp.embedded.goal_reaching import load_follower_actor
 
-        self._torch = torch
         weights = Path(weights)
         if not weights.is_absolute() and not weights.exists():
             weights = WEIGHTS_DIR / weights
@@ -101,6 +99,7 @@ class PolicyFollower:
         self.sensor_slices: list[str] = list(sensor_slices or meta["sensor_slices"])
         self.obs_mean = np.asarray(meta.get("obs_mean", 0.0), dtype=np.float32)
         self.obs_std = np.asarray(meta.get("obs_std", 1.0), dtype=np.float32)
+        self.obs_clip = float(meta.get("obs_clip", np.inf))
         self._slices: list[slice] | None = None
 
     def bind(self, obs_slices: dict[str, slice]) -> None:
@@ -117,13 +116,15 @@ class PolicyFollower:
         self, obs: np.ndarray, robot_position: np.ndarray, robot_heading: float, target: np.ndarray
     ) -> np.ndarray:
         """Deterministic action of the goal-conditioned policy for ``target``."""
+        import torch
+
         if self._slices is None:
             raise RuntimeError("PolicyFollower.bind(env.obs_slices) must be called first")
         sensors = np.concatenate([obs[s] for s in self._slices])
         x = follower_observation(sensors, robot_position, robot_heading, target)
-        x = (x - self.obs_mean) / self.obs_std
-        with self._torch.no_grad():
-            action = self.actor(self._torch.as_tensor(x, dtype=self._torch.float32)[None])[0]
+        x = np.clip((x - self.obs_mean) / self.obs_std, -self.obs_clip, self.obs_clip)
+        with torch.no_grad():
+            action = self.actor(torch.as_tensor(x, dtype=torch.float32)[None])[0]
         return action.numpy()
 
 

@@ -18,10 +18,19 @@ import numpy as np
 
 from semdp.embedded.follower import follower_observation
 
+#: LiDAR channels of obstacles (the "SAC + PPO Lag" low level sees them; the box and the goal
+#: LiDAR are task channels and are left out).
+OBSTACLE_LIDARS: tuple[str, ...] = ("hazards_lidar", "vases_lidar", "pillars_lidar",
+                                    "gremlins_lidar")
 
-def sensor_names(obs_slices: dict[str, slice]) -> list[str]:
-    """The robot's own sensors: every observation part that is not a LiDAR."""
-    return [name for name in obs_slices if not name.endswith("_lidar")]
+
+def sensor_names(obs_slices: dict[str, slice], include_lidar: bool = False) -> list[str]:
+    """The robot's own sensors (every observation part that is not a LiDAR), followed by the
+    obstacle LiDAR channels when ``include_lidar``."""
+    names = [name for name in obs_slices if not name.endswith("_lidar")]
+    if include_lidar:
+        names += [name for name in obs_slices if name in OBSTACLE_LIDARS]
+    return names
 
 
 class GoalReachingEnv(gym.Wrapper):
@@ -36,6 +45,9 @@ class GoalReachingEnv(gym.Wrapper):
         d_min: minimum goal distance (0.2 m); goals are drawn in [d_min, 2 d_min].
         success_radius: distance at which a goal counts as reached.
         episode_steps: low-level steps per episode (truncation).
+        keep_cost: report the inner env's cost (and its terms) instead of 0 -- the low level of
+            the "SAC + PPO Lag" ablation is trained with PPO-Lag in the obstacle env.
+        include_lidar: append the obstacle LiDAR channels to the observation (same ablation).
         reward_scale: multiplies Eq. 3.9 (the per-step distance decrease is ~0.01 m, too small
             next to SAC's entropy bonus; the optimum is unchanged).
     """
@@ -47,6 +59,8 @@ class GoalReachingEnv(gym.Wrapper):
         success_radius: float = 0.05,
         episode_steps: int = 200,
         reward_scale: float = 1.0,
+        keep_cost: bool = False,
+        include_lidar: bool = False,
     ) -> None:
         super().__init__(env)
         if not 0 < success_radius < d_min:
@@ -59,7 +73,8 @@ class GoalReachingEnv(gym.Wrapper):
         if episode_steps < 1:
             raise ValueError(f"episode_steps must be >= 1, got {episode_steps}")
         base = env.unwrapped
-        self.sensor_names = sensor_names(base.obs_slices)
+        self.sensor_names = sensor_names(base.obs_slices, include_lidar)
+        self.keep_cost = bool(keep_cost)
         self._slices = [base.obs_slices[name] for name in self.sensor_names]
         dim = sum(s.stop - s.start for s in self._slices) + 2
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(dim,), dtype=np.float32)
@@ -97,7 +112,7 @@ class GoalReachingEnv(gym.Wrapper):
 
     def step(self, action):
         """One low-level step; reward is the decrease of the goal distance (Eq. 3.9)."""
-        obs, _, terminated, truncated, _ = self.env.step(action)
+        obs, _, terminated, truncated, inner_info = self.env.step(action)
         self._t += 1
         base = self.env.unwrapped
         distance = float(np.linalg.norm(base.robot_position - self.goal))
@@ -108,6 +123,8 @@ class GoalReachingEnv(gym.Wrapper):
             self._sample_goal()
         truncated = truncated or self._t >= self.episode_steps
         info = {"cost": 0.0, "success": float(success), "goal_distance": distance}
+        if self.keep_cost:
+            info.update({k: v for k, v in inner_info.items() if k.startswith("cost")})
         return self._observe(obs), reward, terminated, truncated, info
 
 
@@ -135,12 +152,16 @@ def load_follower_actor(path: str | Path):
         )
     payload = torch.load(path, map_location="cpu", weights_only=False)
     hidden = list(payload["hidden_sizes"])
+    activation = {"relu": torch.nn.ReLU, "tanh": torch.nn.Tanh}[payload.get("activation", "relu")]
     layers: list[torch.nn.Module] = []
     width = int(payload["obs_dim"])
     for size in hidden:
-        layers += [torch.nn.Linear(width, size), torch.nn.ReLU()]
+        layers += [torch.nn.Linear(width, size), activation()]
         width = size
-    layers += [torch.nn.Linear(width, int(payload["act_dim"])), torch.nn.Tanh()]
+    layers.append(torch.nn.Linear(width, int(payload["act_dim"])))
+    # SAC followers squash the mean with tanh; a Gaussian (PPO) policy's mean is clipped.
+    layers.append(torch.nn.Tanh() if payload.get("output", "tanh") == "tanh"
+                  else torch.nn.Hardtanh())
     actor = torch.nn.Sequential(*layers)
     actor.load_state_dict(payload["state_dict"])
     actor.eval()

@@ -1,0 +1,166 @@
+"""The Safety-Embedded MDP wrapper (thesis Alg. 2): reward bookkeeping, planner safety on every
+step, tracking-point oracle, perception modes and the ablation planner."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semdp.envs  # noqa: F401  (registers the sims ids)
+from semdp.embedded.follower import ProportionalFollower
+from semdp.embedded.perception import perceive_obstacles
+from semdp.embedded.straight import StraightLinePlanner
+from semdp.embedded.tracking import ego_to_world, select_tracking_index, world_to_ego
+from semdp.embedded.wrapper import SafetyEmbeddedEnv, build_planner
+
+CLEARANCE = 0.5
+
+
+class RecordingFollower:
+    """A follower that records every low-level action it emits."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+        self.actions: list[np.ndarray] = []
+
+    def act(self, obs, robot_position, robot_heading, target):
+        action = self.inner.act(obs, robot_position, robot_heading, target)
+        self.actions.append(np.array(action, copy=True))
+        return action
+
+
+def _semdp(env_id: str = "sims/SafetyMassPush1-v0", **kwargs) -> SafetyEmbeddedEnv:
+    kwargs.setdefault("planner", "lm_adaptive")
+    kwargs.setdefault("follower", ProportionalFollower(gain=8.0))
+    return SafetyEmbeddedEnv(gym.make(env_id), **kwargs)
+
+
+def test_tracking_index_picks_first_waypoint_beyond_d_min() -> None:
+    waypoints = np.array([[0.0, 0.0], [0.1, 0.0], [0.25, 0.0], [0.5, 0.0], [0.6, 0.0]])
+    assert select_tracking_index(waypoints, np.zeros(2), 0, 0.2) == 2
+    # never moves backwards: from index 3 the robot at the origin still tracks 3
+    assert select_tracking_index(waypoints, np.zeros(2), 3, 0.2) == 3
+    # near the end nothing is d_min away: the last waypoint is tracked
+    assert select_tracking_index(waypoints, np.array([0.55, 0.0]), 3, 0.2) == 4
+    # the search starts at the last index, even if that waypoint is behind the robot (B.2.2)
+    assert select_tracking_index(waypoints, np.array([0.55, 0.0]), 0, 0.2) == 0
+    with pytest.raises(ValueError, match="d_min"):
+        select_tracking_index(waypoints, np.zeros(2), 0, -1.0)
+
+
+def test_tracking_ego_frame_rotation_round_trips() -> None:
+    v = np.array([1.0, 0.0])
+    assert np.allclose(world_to_ego(v, math.pi / 2), [0.0, -1.0])  # world +x is the robot's right
+    assert np.allclose(ego_to_world(np.array([1.0, 0.0]), math.pi / 2), [0.0, 1.0])
+    w = np.array([0.3, -0.7])
+    assert np.allclose(ego_to_world(world_to_ego(w, 1.1), 1.1), w)
+
+
+def test_semdp_reward_is_exactly_the_sum_of_inner_rewards() -> None:
+    follower = RecordingFollower(ProportionalFollower(gain=8.0))
+    env = _semdp(follower=follower, planner="lm")
+    replay = gym.make("sims/SafetyMassPush1-v0")
+    env.reset(seed=3)
+    replay.reset(seed=3)
+    rng = np.random.default_rng(0)
+    for _ in range(6):
+        start = len(follower.actions)
+        _, reward, _, _, info = env.step(rng.uniform(-1, 1, size=2))
+        inner_reward = inner_cost = 0.0
+        for action in follower.actions[start:]:
+            _, r, _, _, inner_info = replay.step(action)
+            inner_reward += r
+            inner_cost += inner_info["cost"]
+        assert info["low_level_steps"] == 10 == len(follower.actions) - start
+        assert reward == inner_reward
+        assert info["cost"] == inner_cost
+    assert np.array_equal(env.unwrapped.robot_position, replay.unwrapped.robot_position)
+
+
+def test_semdp_subgoal_inside_an_obstacle_yields_a_safe_plan() -> None:
+    env = _semdp("sims/SafetyMassGoal1-v0", perception="gt")
+    layout = {"agent": [(0.0, 0.0)], "hazards": [(1.0, 0.0)], "goal": [(-1.2, 1.2)],
+              "vases": [(-1.4, -1.4)]}
+    env.reset(seed=0, options={"layout": layout})
+    base = env.unwrapped
+    hazard = np.array([1.0, 0.0])
+    action = 0.5 * world_to_ego(hazard - base.robot_position, base.robot_heading)
+    assert np.allclose(env.subgoal_of(action), hazard)
+    _, _, _, _, info = env.step(action)
+    plan = info["plan"]
+    assert info["plan_feasible"] and not info["plan_escape"]
+    distances = np.linalg.norm(plan.waypoints - hazard, axis=1)
+    assert distances.min() >= CLEARANCE - 1e-9
+    assert info["cost"] == 0.0
+
+
+@pytest.mark.parametrize("perception", ["gt", "lidar"])
+def test_semdp_certificate_holds_on_every_step_of_a_rollout(perception: str) -> None:
+    """Every waypoint keeps eps' from every perceived obstacle; with ground truth the executed
+    robot positions never incur a cost (hazard radius 0.2 < eps' = 0.5)."""
+    env = _semdp("sims/SafetyMassGoal1-v0", perception=perception)
+    obs, _ = env.reset(seed=1)
+    rng = np.random.default_rng(1)
+    for _ in range(25):
+        perceived = perceive_obstacles(env.unwrapped, obs, perception)
+        obs, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, size=2))
+        plan = info["plan"]
+        if len(perceived) and not plan.escape_mode:
+            gaps = np.linalg.norm(plan.waypoints[:, None] - perceived[None, :, :2], axis=-1)
+            assert gaps.min() >= CLEARANCE - 1e-9
+            assert plan.feasible
+        if perception == "gt":
+            assert info["cost"] == 0.0
+        assert not (terminated or truncated)
+
+
+def test_semdp_info_carries_timings_and_counts() -> None:
+    env = _semdp()
+    env.reset(seed=0)
+    env.step(np.zeros(2))
+    _, _, _, _, info = env.step(np.array([0.5, -0.5]))
+    for key in ("perception_s", "plan_s", "follow_s", "sim_s"):
+        assert info[key] >= 0.0 and env.timing[key] >= info[key]
+    assert env.high_level_steps == 2 and env.low_level_steps == 20
+    assert info["subgoal"].shape == (2,) and info["n_obstacles"] >= 0
+
+
+def test_semdp_rejects_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="perception"):
+        _semdp(perception="radar")
+    with pytest.raises(ValueError, match="k"):
+        _semdp(k=0)
+    with pytest.raises(ValueError, match="unknown planner"):
+        _semdp(planner="teleport")
+    env = _semdp()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="2 finite numbers"):
+        env.step(np.array([np.nan, 0.0]))
+
+
+def test_semdp_planner_kwargs_reach_the_planner() -> None:
+    planner = build_planner("lm", {"clearance": 0.7, "continuous": True})
+    assert planner.clearance == 0.7 and planner.continuous
+    assert isinstance(build_planner("straight"), StraightLinePlanner)
+
+
+def test_straight_planner_ignores_obstacles_and_reports_clearance() -> None:
+    plan = StraightLinePlanner(n_waypoints=5).plan([0, 0], [2, 0], [[1.0, 0.0, 0.0]])
+    assert np.allclose(plan.waypoints[:, 0], [0, 0.5, 1.0, 1.5, 2.0])
+    assert plan.min_clearance == 0.0 and not plan.feasible
+
+
+def test_perception_gt_and_lidar_find_a_planted_hazard() -> None:
+    env = gym.make("sims/SafetyMassGoal1-v0")
+    layout = {"agent": [(0.0, 0.0)], "hazards": [(1.0, 0.5)], "goal": [(-1.2, 1.2)],
+              "vases": [(-1.4, -1.4)]}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    gt = perceive_obstacles(env.unwrapped, obs, "gt", kinds=("hazards",))
+    assert np.allclose(gt, [[1.0, 0.5, 0.0]])
+    lidar = perceive_obstacles(env.unwrapped, obs, "lidar", kinds=("hazards",))
+    assert len(lidar) >= 1
+    # LiDAR reconstruction: bin-centre bearing (16 bins: <= 11.25 deg off) and exact range
+    assert np.min(np.linalg.norm(lidar[:, :2] - [1.0, 0.5], axis=1)) < 0.25
