@@ -175,7 +175,7 @@ def test_train_env_wrapper_node_is_applied_to_each_sub_env(
 
 @pytest.mark.parametrize(
     "extra",
-    [["algo/lagrange=pid"], ["algo.thresholds.rule=literal"], ["algo.lagrange.optimizer=sgd"]],
+    [["algo/lagrange=pid"], ["algo.thresholds.rule=literal"], ["algo/lagrange=sgd"]],
     ids=["pid", "literal", "sgd-eq-2.10"],
 )
 def test_train_sp_ppo_lag_variants_run_through_the_app(
