@@ -1,0 +1,77 @@
+"""Evaluate a trained run on a modified evaluation env (SPEC §4.3, §5).
+
+Both the eps' trade-off (Fig. B.1) and the transfer stand-in (Table 3.2) re-evaluate a policy
+with the mean action on envs that differ from the training ones. :func:`evaluate_on` swaps a
+freshly built evaluation vector env into the algorithm for one :meth:`Algorithm.evaluate` call.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from semdp.algos.base import CHECKPOINT_NAME, Algorithm
+from semdp.envs import make_vec_env
+
+logger = logging.getLogger(__name__)
+
+
+def load_trained(run_dir: str | Path) -> tuple[Algorithm, DictConfig]:
+    """Rebuild the algorithm of a finished run from ``config.yaml`` and ``checkpoints/last.pt``.
+
+    Raises:
+        ValueError: ``run_dir`` lacks ``config.yaml`` or the checkpoint.
+    """
+    from semdp.train import build_algorithm
+
+    run_dir = Path(run_dir)
+    ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
+    if not (run_dir / "config.yaml").is_file() or not ckpt.is_file():
+        raise ValueError(f"{run_dir} is not a finished run dir (needs config.yaml and {ckpt.name})")
+    cfg = OmegaConf.load(run_dir / "config.yaml")
+    algo = build_algorithm(cfg)
+    algo.load_checkpoint(ckpt)
+    return algo, cfg
+
+
+def evaluate_on(
+    algo: Algorithm, env_cfg: Mapping[str, Any], episodes: int, seed: int, num_envs: int
+) -> dict[str, Any]:
+    """Mean-action evaluation of ``algo`` on envs built from ``env_cfg`` (evaluation variant).
+
+    The algorithm's own evaluation envs are restored afterwards. With ``num_envs == episodes``
+    every sub-env plays exactly one episode from ``reset(seed=seed + i)``: a fixed set of layouts.
+    """
+    if episodes < 1 or num_envs < 1:
+        raise ValueError(f"episodes and num_envs must be >= 1, got {episodes}, {num_envs}")
+    envs = make_vec_env(env_cfg, seed=seed, num_envs=num_envs, evaluation=True)
+    saved = algo.eval_envs
+    algo.eval_envs = envs
+    try:
+        return algo.evaluate(episodes, seed=seed)
+    finally:
+        algo.eval_envs = saved
+        envs.close()
+
+
+def env_config(cfg: DictConfig) -> dict[str, Any]:
+    """The run's env node as a plain dict (interpolations resolved, wrappers left as nodes)."""
+    node = OmegaConf.to_container(cfg.env, resolve=True)
+    if not isinstance(node, dict):
+        raise ValueError(f"cfg.env must be a mapping, got {type(node).__name__}")
+    node.pop("post_train", None)
+    return node
+
+
+def chain_post_train(hook_cfg: Any, **kwargs: Any) -> dict[str, Any]:
+    """Call the env config's own ``post_train`` hook (e.g. the SEMDP artefacts), if any."""
+    from hydra.utils import instantiate
+
+    metrics = kwargs["metrics"]
+    if hook_cfg:
+        metrics = instantiate(hook_cfg)(**kwargs)
+    return metrics
