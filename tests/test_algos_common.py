@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from semdp.algos.ppo_lag import combined_advantage
+from semdp.algos.lagrangian import combined_advantage
 from semdp.common.advantages import gae
 from semdp.common.lagrange import Lagrange, PIDLagrange
 from semdp.common.normalization import RunningNormalizer
