@@ -164,3 +164,23 @@ def test_perception_gt_and_lidar_find_a_planted_hazard() -> None:
     assert len(lidar) >= 1
     # LiDAR reconstruction: bin-centre bearing (16 bins: <= 11.25 deg off) and exact range
     assert np.min(np.linalg.norm(lidar[:, :2] - [1.0, 0.5], axis=1)) < 0.25
+
+
+def test_safety_eval_attributes_violations_to_their_source() -> None:
+    from types import SimpleNamespace
+
+    from semdp.embedded.safety_eval import classify_window
+
+    def plan(waypoints, **flags):
+        return SimpleNamespace(waypoints=np.asarray(waypoints, float), feasible=True,
+                               fallback=False, escape_mode=False, **flags)
+
+    obstacle = np.array([[1.0, 0.0, 0.3]])
+    line = [[0.0, 0.6], [2.0, 0.6]]  # 0.6 m from the centre: safe, segments included
+    assert classify_window(plan(line), obstacle, 0.5) == "following"
+    assert classify_window(plan([[0.0, 0.4], [1.0, 0.4]]), obstacle, 0.5) == "perception"
+    # waypoints 1.2 m apart on both sides: each is 0.6+ m away, the segment passes 0.3 m away
+    assert classify_window(plan([[0.4, 0.3], [1.6, 0.3]]), obstacle, 0.5) == "discretisation"
+    fallback = plan(line)
+    fallback.fallback = True
+    assert classify_window(fallback, obstacle, 0.5) == "planner"
