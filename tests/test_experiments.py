@@ -1,0 +1,242 @@
+"""Experiment presets (conf/experiment/, conf/method/) and their evaluation helpers (SPEC §5)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig, OmegaConf
+
+import semdp.envs  # noqa: F401  (registers the sims ids)
+from semdp.experiments.tradeoff import is_semdp_env, with_clearance
+from semdp.experiments.transfer import (
+    ObservationNoise,
+    SuccessOnGoal,
+    transfer_env_config,
+    transfer_table,
+    transfer_wrap,
+)
+from semdp.paths import CONF_DIR
+
+PRESETS = ("sp_safety_gym", "sp_driving", "semdp_push", "semdp_ablations", "semdp_tradeoff",
+           "semdp_goal", "transfer")
+BUDGETS = ("ci", "laptop", "paper")
+
+
+@pytest.fixture(autouse=True)
+def _clear_hydra_config():
+    """:func:`preset` registers a Hydra config; other tests must not see it."""
+    yield
+    HydraConfig.instance().cfg = None
+
+
+def preset(name: str, budget: str, *overrides: str) -> DictConfig:
+    """The composed config of ``semdp-train experiment=<name> budget=<budget>`` with the Hydra
+    node, registered so that ``${hydra:runtime.choices.budget}`` resolves."""
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose("train", overrides=[f"experiment={name}", f"budget={budget}", *overrides],
+                      return_hydra_config=True)
+    HydraConfig.instance().set_config(cfg)
+    return cfg
+
+
+def sweep(cfg: DictConfig) -> dict[str, str]:
+    return {str(k): str(v) for k, v in cfg.hydra.sweeper.params.items()}
+
+
+@pytest.mark.parametrize("budget", BUDGETS)
+@pytest.mark.parametrize("name", PRESETS)
+def test_preset_composes_and_resolves_at_every_budget(name: str, budget: str) -> None:
+    cfg = preset(name, budget)
+    assert cfg.total_steps > 0 and cfg.algo.steps_per_epoch > 0
+    params = sweep(cfg)
+    assert params["seed"].startswith("range(0,")
+    assert f"/{name}/{budget}/" in str(cfg.hydra.sweep.dir)
+    job = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    OmegaConf.to_container(job, resolve=True)  # every interpolation of the job resolves
+
+
+def test_preset_ci_budget_is_seconds_and_paper_is_the_thesis() -> None:
+    assert preset("sp_safety_gym", "ci").total_steps <= 2000
+    paper = preset("sp_safety_gym", "paper")
+    assert paper.total_steps == 10_000_000 and paper.cost_limit == 25.0
+    params = sweep(paper)
+    assert params["seed"] == "range(0,5)"
+    assert set(params["env"].split(",")) == {
+        f"point_{task}{level}" for task in ("goal", "button", "push") for level in (1, 2)
+    }
+    assert set(params["algo"].split(",")) == {"ppo_lag", "sp_ppo_lag"}
+
+
+def test_sp_driving_sweeps_desired_speeds_and_names_envs_by_speed() -> None:
+    paper = preset("sp_driving", "paper", "env.kwargs.desired_speed=5.0", "env=drive_trajectory")
+    assert sweep(paper)["env.kwargs.desired_speed"] == "1.0,2.0,3.0,4.0,5.0,6.0"
+    assert paper.env.id == "sims/DriveTrajectory-v0"
+    assert paper.env_name == "drive_trajectory_v5.0"
+    assert sweep(preset("sp_driving", "laptop"))["seed"] == "range(0,2)"
+
+
+@pytest.mark.parametrize("budget", BUDGETS)
+def test_semdp_push_baselines_get_four_times_the_env_steps_of_ours(budget: str) -> None:
+    ours = preset("semdp_push", budget, "method=ours")
+    cpo = preset("semdp_push", budget, "method=cpo")
+    k = ours.env.wrapper.k
+    assert cpo.total_steps >= 4 * k * ours.total_steps
+    assert ours.cost_limit == cpo.cost_limit == 0.0
+    if budget == "paper":
+        assert k * ours.total_steps == 10_000_000 and cpo.total_steps == 40_000_000
+        assert sweep(ours)["seed"] == "range(0,4)"
+
+
+@pytest.mark.parametrize(
+    ("method", "label", "target", "semdp"),
+    [("ours", "Ours", "SAC", True), ("ours_gt", "Ours w/ gt", "SAC", True),
+     ("ours_wo_lag", "Ours w/o Lag", "SAC", True), ("ppo_lag_sac", "PPO Lag + SAC", "PPOLag", True),
+     ("sac_ppo_lag", "SAC + PPO Lag", "SAC", True), ("cpo", "CPO", "CPO", False),
+     ("ppo_lag", "PPO Lag", "PPOLag", False), ("trpo_lag", "TRPO Lag", "TRPOLag", False)],
+)
+def test_semdp_method_picks_label_algorithm_and_env(
+    method: str, label: str, target: str, semdp: bool
+) -> None:
+    cfg = preset("semdp_ablations", "paper", f"method={method}", "robot=car")
+    assert cfg.label == cfg.algo_name == label
+    assert cfg.algo._target_.rsplit(".", 1)[-1] == target
+    assert cfg.env.id == "sims/SafetyCarPush1-v0" and cfg.env_name == "CarPush1"
+    assert (cfg.env.get("wrapper") is not None) == semdp
+    if method == "ours_gt":
+        assert cfg.env.wrapper.perception == "gt"
+    if method == "ours_wo_lag":
+        assert cfg.env.eval_wrapper.planner == cfg.env.wrapper.planner == "lm"
+    if method == "ours":
+        assert cfg.env.eval_wrapper.planner == "lm_adaptive"
+
+
+def test_semdp_goal_and_tradeoff_and_transfer_presets() -> None:
+    goal = preset("semdp_goal", "paper", "method=ours", "robot=mass")
+    assert goal.env.id == "sims/SafetyMassGoal1-v0" and goal.env_name == "MassGoal1"
+    assert sweep(goal)["robot"] == "mass,point,car"
+    tradeoff = preset("semdp_tradeoff", "laptop")
+    assert tradeoff.post_train._target_ == "semdp.experiments.tradeoff.after_training"
+    assert list(tradeoff.post_train.clearances) == [0.1, 0.25, 0.5, 0.75]
+    transfer = preset("transfer", "ci")
+    assert transfer.post_train._target_ == "semdp.experiments.transfer.after_training"
+    assert sweep(transfer)["method"] == "ours,trpo_lag"
+
+
+def _semdp_env_node() -> dict[str, Any]:
+    cfg = preset("semdp_push", "ci", "method=ours")
+    node = OmegaConf.to_container(cfg.env, resolve=True)
+    assert isinstance(node, dict)
+    return node
+
+
+def test_with_clearance_changes_only_the_evaluation_planner() -> None:
+    node = _semdp_env_node()
+    out = with_clearance(node, 0.25)
+    assert out["eval_wrapper"]["planner_kwargs"] == {"clearance": 0.25}
+    assert node["eval_wrapper"]["planner_kwargs"] == {}  # the input is not mutated
+    assert out["wrapper"] == node["wrapper"]
+    assert is_semdp_env(node)
+    with pytest.raises(ValueError, match="clearance"):
+        with_clearance(node, -0.1)
+    baseline = {"id": "sims/SafetyPointPush1-v0", "wrapper": None, "eval_wrapper": None}
+    assert not is_semdp_env(baseline)
+    with pytest.raises(ValueError, match="semdp_"):
+        with_clearance(baseline, 0.5)
+
+
+def test_observation_noise_is_seeded_and_stays_in_bounds() -> None:
+    space = gym.spaces.Box(0.0, 1.0, shape=(400,), dtype=np.float32)
+
+    class Constant(gym.Env):
+        observation_space, action_space = space, gym.spaces.Discrete(1)
+
+        def reset(self, *, seed=None, options=None):
+            return np.full(400, 0.99, dtype=np.float32), {}
+
+    first = ObservationNoise(Constant(), std=0.05).reset(seed=3)[0]
+    again = ObservationNoise(Constant(), std=0.05).reset(seed=3)[0]
+    other = ObservationNoise(Constant(), std=0.05).reset(seed=4)[0]
+    np.testing.assert_array_equal(first, again)
+    assert not np.array_equal(first, other)
+    assert first.min() >= 0.0 and first.max() <= 1.0 and (first == 1.0).any()  # clipped
+    assert first.dtype == np.float32 and abs(float(np.median(first)) - 0.99) < 0.02
+    assert (ObservationNoise(Constant(), std=0.0).reset(seed=0)[0] == np.float32(0.99)).all()
+    with pytest.raises(ValueError, match="std"):
+        ObservationNoise(Constant(), std=-1.0)
+
+
+def test_success_on_goal_ends_the_episode_with_success() -> None:
+    class Scripted(gym.Env):
+        observation_space = gym.spaces.Box(-1, 1, shape=(1,))
+        action_space = gym.spaces.Box(-1, 1, shape=(1,))
+
+        def __init__(self, goal_step: int, horizon: int) -> None:
+            self.goal_step, self.horizon, self.t = goal_step, horizon, 0
+
+        def reset(self, *, seed=None, options=None):
+            self.t = 0
+            return np.zeros(1), {}
+
+        def step(self, action):
+            self.t += 1
+            info = {"cost": 0.0, "goal_met": self.t == self.goal_step}
+            return np.zeros(1), 0.0, False, self.t >= self.horizon, info
+
+    env = SuccessOnGoal(Scripted(goal_step=3, horizon=10))
+    env.reset()
+    outs = [env.step(0.0) for _ in range(3)]
+    assert [o[2] for o in outs] == [False, False, True] and outs[-1][4]["success"] == 1.0
+    assert "success" not in outs[0][4]
+    env = SuccessOnGoal(Scripted(goal_step=99, horizon=2))
+    env.reset()
+    env.step(0.0)
+    _, _, terminated, truncated, info = env.step(0.0)
+    assert (terminated, truncated, info["success"]) == (False, True, 0.0)
+
+
+def test_transfer_variant_resizes_objects_and_cuts_episodes() -> None:
+    node = {"id": "sims/SafetyPointPush1-v0", "num_envs": 1, "kwargs": {}, "wrapper": None,
+            "eval_wrapper": None}
+    sizes = {"hazard_radius": 0.2, "goal_size": 0.45}
+    out = transfer_env_config(node, sizes, noise_std=0.05, episode_steps=60)
+    assert out["kwargs"] == {"sizes": sizes, "max_episode_steps": 60} and node["kwargs"] == {}
+    env = out["eval_wrapper"](gym.make(out["id"], **out["kwargs"]))
+    assert env.unwrapped.goal_size == 0.45 and env.unwrapped.hazard_radius == 0.2
+    env.reset(seed=0)
+    steps, done, info = 0, False, {}
+    while not done:
+        _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
+        steps, done = steps + 1, terminated or truncated
+    assert steps == 60 and info["success"] == 0.0  # a robot standing still never scores
+    with pytest.raises(ValueError, match="Push"):
+        transfer_env_config({**node, "id": "sims/SafetyPointGoal1-v0"}, sizes, 0.0, 60)
+    with pytest.raises(ValueError, match="episode_steps"):
+        transfer_env_config(node, sizes, 0.0, 0)
+    assert isinstance(transfer_wrap(gym.make(out["id"]), 0.0, None), SuccessOnGoal)
+
+
+def test_transfer_table_counts_successes_per_method(tmp_path: Path) -> None:
+    def write(name: str, label: str, success: float, ret: float) -> None:
+        run = tmp_path / name
+        run.mkdir()
+        transfer = {"success_rate": success, "return_mean": ret, "cost_mean": 0.0,
+                    "layouts": 10, "episodes": 10}
+        (run / "metrics.json").write_text(json.dumps(
+            {"env": "PointPush1", "label": label, "transfer": transfer}))
+
+    write("a", "Ours", 0.8, 1.0)
+    write("b", "Ours", 0.6, 2.0)
+    write("c", "TRPO Lag", 0.0, 0.2)
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "metrics.json").write_text(json.dumps({"env": "PointPush1", "algo": "x"}))
+    table = transfer_table(tmp_path)
+    assert "| PointPush1 | Ours | 2 | 7.0/10 | 1.50 | 0.00 |" in table
+    assert "| PointPush1 | TRPO Lag | 1 | 0.0/10 | 0.20 | 0.00 |" in table
+    assert "Simulated" in table and "| x |" not in table
