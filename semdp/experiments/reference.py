@@ -1,0 +1,105 @@
+"""Turn a finished sweep into a committed reference folder (issue 8 deliverable 3).
+
+    python -m semdp.experiments.reference <sweep dir> outputs/reference/<preset> [--order ...]
+
+Writes the ``semdp-report`` table and figures into the folder (no checkpoints or run
+directories) and ``COMMAND.md``: the exact command (from the sweep's ``multirun.yaml``), the
+sweep's wall time (first job start to last ``metrics.json``), the summed per-run training wall
+time, the number of runs and their status, the machine, and the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shlex
+import time
+from pathlib import Path
+from typing import Any
+
+from omegaconf import OmegaConf
+
+from semdp.report import write_report
+
+MACHINE = ("2 CPU cores (x86_64 VM), no GPU, 1 torch thread per run, `hydra.launcher.n_jobs=1`; "
+           "the machine was shared with other jobs (several helpers training and testing), so "
+           "wall times are upper bounds of a quiet machine's.")
+
+
+def sweep_command(sweep_dir: Path) -> str:
+    """``semdp-train -m <overrides>`` as recorded in ``multirun.yaml``."""
+    path = sweep_dir / "multirun.yaml"
+    if not path.is_file():
+        raise ValueError(f"{sweep_dir} has no multirun.yaml (not a Hydra sweep directory)")
+    cfg = OmegaConf.load(path)
+    overrides = [*cfg.hydra.overrides.task, *cfg.hydra.overrides.hydra]
+    overrides = [o for o in overrides
+                 if not o.startswith(("hydra.sweep.dir=", "hydra.mode="))]
+    return "semdp-train -m " + " ".join(shlex.quote(str(o)) for o in overrides)
+
+
+def sweep_summary(sweep_dir: Path) -> dict[str, Any]:
+    """Run count, statuses, summed run wall time and the sweep's wall time (seconds)."""
+    metrics_files = sorted(sweep_dir.rglob("metrics.json"))
+    metrics_files = [p for p in metrics_files if "report" not in p.parts]
+    statuses: dict[str, int] = {}
+    run_wall = 0.0
+    for path in metrics_files:
+        metrics = json.loads(path.read_text())
+        statuses[metrics.get("status", "?")] = statuses.get(metrics.get("status", "?"), 0) + 1
+        run_wall += float(metrics.get("wall_time_s") or 0.0)
+    start = (sweep_dir / "multirun.yaml").stat().st_mtime
+    end = max((p.stat().st_mtime for p in metrics_files), default=start)
+    return {"runs": len(metrics_files), "statuses": statuses, "run_wall_s": run_wall,
+            "sweep_wall_s": end - start,
+            "finished": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(end))}
+
+
+def write_reference(sweep_dir: Path, out_dir: Path, order: list[str] | None = None,
+                    note: str = "") -> Path:
+    """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path."""
+    sweep_dir, out_dir = Path(sweep_dir), Path(out_dir)
+    write_report(sweep_dir, out_dir, order=order)
+    summary = sweep_summary(sweep_dir)
+    table = (out_dir / "table.md").read_text().replace(str(sweep_dir.resolve()), "<sweep dir>")
+    (out_dir / "table.md").write_text(table)
+    status = ", ".join(f"{n} {s}" for s, n in sorted(summary["statuses"].items()))
+    text = [
+        f"# Reference: `{out_dir.name}`", "",
+        "Produced from the repository root with:", "", "```bash", sweep_command(sweep_dir),
+        f"semdp-report <sweep dir>   # or: python -m semdp.experiments.reference <sweep dir> "
+        f"{out_dir.as_posix()}", "```", "",
+        f"- Runs: {summary['runs']} ({status}); finished {summary['finished']}.",
+        f"- Sweep wall time: {summary['sweep_wall_s'] / 60:.1f} min (first job start to last "
+        f"metrics.json); summed training wall time of the runs: "
+        f"{summary['run_wall_s'] / 60:.1f} min (final evaluations and post-training hooks "
+        "are in the sweep time only).",
+        f"- Machine: {MACHINE} ({platform.python_implementation()} "
+        f"{platform.python_version()}, {os.cpu_count()} logical CPUs).",
+    ]
+    if note:
+        text += ["", note]
+    text += ["", "## Table", "", table.replace("# Results", "### Results", 1)]
+    path = out_dir / "COMMAND.md"
+    path.write_text("\n".join(text))
+    return path
+
+
+def main(argv: list[str] | None = None) -> None:
+    """CLI entry point."""
+    parser = argparse.ArgumentParser(prog="python -m semdp.experiments.reference",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("sweep_dir", type=Path)
+    parser.add_argument("out_dir", type=Path)
+    parser.add_argument("--order", default="", help="comma-separated method labels first")
+    parser.add_argument("--note", default="", help="a paragraph added to COMMAND.md")
+    args = parser.parse_args(argv)
+    order = [s.strip() for s in args.order.split(",") if s.strip()]
+    path = write_reference(args.sweep_dir, args.out_dir, order, args.note)
+    print(path.read_text())
+
+
+if __name__ == "__main__":
+    main()
