@@ -240,3 +240,22 @@ def test_transfer_table_counts_successes_per_method(tmp_path: Path) -> None:
     assert "| PointPush1 | Ours | 2 | 7.0/10 | 1.50 | 0.00 |" in table
     assert "| PointPush1 | TRPO Lag | 1 | 0.0/10 | 0.20 | 0.00 |" in table
     assert "Simulated" in table and "| x |" not in table
+
+
+def test_reference_reads_the_command_and_summarises_the_sweep(tmp_path: Path) -> None:
+    from semdp.experiments.reference import sweep_command, sweep_summary
+
+    (tmp_path / "multirun.yaml").write_text(
+        "hydra:\n  overrides:\n    task: [experiment=sp_driving, budget=laptop]\n"
+        "    hydra: [hydra.launcher.n_jobs=1, hydra.mode=MULTIRUN, hydra.sweep.dir=/x]\n")
+    for name, status, wall in (("0_a", "completed", 60.0), ("1_b", "failed", 30.0)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "metrics.json").write_text(
+            json.dumps({"status": status, "wall_time_s": wall}))
+    assert sweep_command(tmp_path) == (
+        "semdp-train -m experiment=sp_driving budget=laptop hydra.launcher.n_jobs=1")
+    summary = sweep_summary(tmp_path)
+    assert summary["runs"] == 2 and summary["run_wall_s"] == 90.0
+    assert summary["statuses"] == {"completed": 1, "failed": 1}
+    with pytest.raises(ValueError, match=r"multirun\.yaml"):
+        sweep_command(tmp_path / "0_a")
