@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("overrides", nargs="*", help="key=value on the saved config")
     parser.add_argument("--label", required=True)
     parser.add_argument("--episodes", type=int, default=50)
-    args = parser.parse_args(argv)
+    args = parser.parse_intermixed_args(argv)
     metrics = reevaluate(args.run_dir, args.out_dir, args.label, args.overrides, args.episodes)
     ev = metrics["eval"]
     print(f"{args.out_dir}: {args.label}: return {ev['return_mean']:.3f} cost "
