@@ -50,15 +50,17 @@ def sweep_summary(sweep_dir: Path) -> dict[str, Any]:
         metrics = json.loads(path.read_text())
         statuses[metrics.get("status", "?")] = statuses.get(metrics.get("status", "?"), 0) + 1
         run_wall += float(metrics.get("wall_time_s") or 0.0)
-    start = (sweep_dir / "multirun.yaml").stat().st_mtime
-    end = max((p.stat().st_mtime for p in metrics_files), default=start)
+    end = max((p.stat().st_mtime for p in metrics_files), default=time.time())
+    multirun = sweep_dir / "multirun.yaml"
+    # Without multirun.yaml (runs collected from several sweeps) the summed run time stands in.
+    sweep_wall = end - multirun.stat().st_mtime if multirun.is_file() else run_wall
     return {"runs": len(metrics_files), "statuses": statuses, "run_wall_s": run_wall,
-            "sweep_wall_s": end - start,
+            "sweep_wall_s": sweep_wall,
             "finished": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(end))}
 
 
 def write_reference(sweep_dir: Path, out_dir: Path, order: list[str] | None = None,
-                    note: str = "") -> Path:
+                    note: str = "", command: str = "") -> Path:
     """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path."""
     sweep_dir, out_dir = Path(sweep_dir), Path(out_dir)
     write_report(sweep_dir, out_dir, order=order)
@@ -68,7 +70,8 @@ def write_reference(sweep_dir: Path, out_dir: Path, order: list[str] | None = No
     status = ", ".join(f"{n} {s}" for s, n in sorted(summary["statuses"].items()))
     text = [
         f"# Reference: `{out_dir.name}`", "",
-        "Produced from the repository root with:", "", "```bash", sweep_command(sweep_dir),
+        "Produced from the repository root with:", "", "```bash",
+        command or sweep_command(sweep_dir),
         f"semdp-report <sweep dir>   # or: python -m semdp.experiments.reference <sweep dir> "
         f"{out_dir.as_posix()}", "```", "",
         f"- Runs: {summary['runs']} ({status}); finished {summary['finished']}.",
@@ -95,9 +98,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--order", default="", help="comma-separated method labels first")
     parser.add_argument("--note", default="", help="a paragraph added to COMMAND.md")
+    parser.add_argument("--command", default="",
+                        help="the command(s) to record (default: from multirun.yaml)")
     args = parser.parse_args(argv)
     order = [s.strip() for s in args.order.split(",") if s.strip()]
-    path = write_reference(args.sweep_dir, args.out_dir, order, args.note)
+    path = write_reference(args.sweep_dir, args.out_dir, order, args.note, args.command)
     print(path.read_text())
 
 
