@@ -58,16 +58,25 @@ def read_table(path: Path) -> tuple[list[str], dict[tuple[str, str], list[str]]]
     return columns, rows
 
 
+#: Robots whose SEMDP follower weights are committed (the Car follower is trained by issue 7).
+ROBOTS = [r for r in ("mass", "point", "car")
+          if r == "mass" or (REPO / "semdp" / "embedded" / "weights" / f"{r}.pt").is_file()]
+
+
 @pytest.mark.parametrize("name", list(EXPECTED))
 def test_preset_ci_sweep_and_report(name: str, tmp_path: Path) -> None:
     sweep = tmp_path / name
-    _train(f"experiment={name}", "budget=ci", f"hydra.sweep.dir={sweep}")
+    methods, envs, extra = EXPECTED[name]
+    overrides = []
+    if name in ("semdp_push", "semdp_ablations"):  # robots without follower weights can't run
+        overrides = [f"robot={','.join(ROBOTS)}"]
+        envs = [env for env in envs if env[:-5].lower() in ROBOTS]
+    _train(f"experiment={name}", "budget=ci", f"hydra.sweep.dir={sweep}", *overrides)
     if name == "transfer":
         _cli("semdp.experiments.transfer", "table", str(sweep))
     _cli("semdp.report", str(sweep))
     report = sweep / "report"
     columns, rows = read_table(report / "table.md")
-    methods, envs, extra = EXPECTED[name]
     assert sorted(columns) == sorted(methods)
     assert set(rows) == {(env, metric) for env in envs for metric in ("reward", "cost")}
     for env in envs:
