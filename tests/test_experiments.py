@@ -276,3 +276,25 @@ def test_reeval_rejects_unfinished_runs_and_unknown_keys(tmp_path: Path) -> None
         reevaluate(tmp_path, tmp_path / "out", "x", ["env.eval_wrapper.planer=lm"])
     with pytest.raises(ValueError, match="key=value"):
         reevaluate(tmp_path, tmp_path / "out", "x", ["env.eval_wrapper.planner"])
+
+
+@pytest.mark.parametrize(
+    ("launcher", "plugin", "target"),
+    [("local", "hydra_plugins.hydra_joblib_launcher", "JoblibLauncher"),
+     ("cluster_slurm", "hydra_plugins.hydra_submitit_launcher", "SlurmLauncher"),
+     ("submitit_local", "hydra_plugins.hydra_submitit_launcher", "LocalLauncher"),
+     ("cluster_ray", "hydra_plugins.hydra_ray_launcher", "RayLauncher")],
+)
+def test_launcher_configs_compose_with_a_preset(launcher: str, plugin: str, target: str) -> None:
+    import importlib.util
+
+    if importlib.util.find_spec(plugin) is None:
+        pytest.skip(f"optional extra not installed ({plugin})")
+    cfg = preset("semdp_push", "paper", f"hydra/launcher={launcher}")
+    assert cfg.hydra.launcher._target_.endswith(target)
+    if launcher == "local":
+        assert cfg.hydra.launcher.n_jobs == 2
+    if launcher == "cluster_slurm":
+        assert (cfg.hydra.launcher.cpus_per_task, cfg.hydra.launcher.timeout_min) == (2, 1440)
+    if launcher == "cluster_ray":
+        assert cfg.hydra.launcher.ray.remote.num_cpus == 2
