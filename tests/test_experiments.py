@@ -63,7 +63,8 @@ def test_preset_composes_and_resolves_at_every_budget(name: str, budget: str) ->
 
 
 def test_preset_ci_budget_is_seconds_and_paper_is_the_thesis() -> None:
-    assert preset("sp_safety_gym", "ci").total_steps <= 2000
+    ci = preset("sp_safety_gym", "ci")
+    assert ci.total_steps <= 4000 and ci.env.num_envs == 2
     paper = preset("sp_safety_gym", "paper")
     assert paper.total_steps == 10_000_000 and paper.cost_limit == 25.0
     params = sweep(paper)
