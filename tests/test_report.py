@@ -249,3 +249,21 @@ def test_training_curves_skip_failed_runs(tmp_path: Path) -> None:
     assert not plot_training_curves([failed], "e", tmp_path / "failed.png")
     assert not (tmp_path / "failed.png").exists()
     assert plot_training_curves([failed, running], "e", tmp_path / "running.png")
+
+
+def test_semdp_curves_are_put_on_low_level_env_steps(tmp_path: Path) -> None:
+    """A SEMDP run logs high-level steps; the report multiplies them by k (10 here)."""
+    finished = load_run(
+        _write_run(tmp_path / "done", algo="sac", env="PointPush1", seed=0, rows=3,
+                   extra={"semdp": {"k": 10}})
+    )  # fmt: skip
+    assert finished.curves["env_steps"].tolist() == [10_000.0, 20_000.0, 30_000.0]
+    unfinished = _write_run(tmp_path / "running", algo="sac", env="PointPush1", seed=1, rows=2,
+                            metrics=False)  # fmt: skip
+    (unfinished / "config.yaml").write_text(
+        "label: Ours\nenv:\n  wrapper:\n    _target_: semdp.embedded.wrapper.SafetyEmbeddedEnv\n"
+        "    k: 5\n"
+    )
+    assert load_run(unfinished).curves["env_steps"].tolist() == [5_000.0, 10_000.0]
+    plain = load_run(_write_run(tmp_path / "ppo", algo="ppo", env="PointPush1", seed=0, rows=2))
+    assert plain.curves["env_steps"].tolist() == [1_000.0, 2_000.0]

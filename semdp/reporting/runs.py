@@ -7,6 +7,9 @@ Fields relied on (all optional; whatever is missing is reported, never fatal):
   ``eval.cost_mean`` and, for the Fig. B.1 sweep, ``tradeoff``: a list of
   ``{"clearance", "return_mean", "cost_mean"}``.
 * ``progress.csv``: columns ``env_steps``, ``ep_return``, ``ep_cost`` (empty cell = not measured).
+  A Safety-Embedded MDP run counts *high-level* steps there (one per subgoal); its curves are
+  put on low-level env steps by multiplying by k, taken from ``metrics.json["semdp"]["k"]`` or,
+  for an unfinished run, from ``config.yaml``'s ``env.wrapper.k``.
 * ``config.yaml`` (only when ``metrics.json`` is missing): ``label``, ``algo_name``, ``env_name``,
   ``seed``, to name an unfinished run.
 """
@@ -24,6 +27,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import yaml
 
 logger = logging.getLogger(__name__)
 
@@ -179,11 +183,31 @@ def _tradeoff(metrics: dict[str, Any]) -> tuple[TradeoffPoint, ...]:
     return tuple(points)
 
 
+def steps_per_decision(path: Path, metrics: dict[str, Any] | None) -> int:
+    """Low-level env steps per logged step: k for a Safety-Embedded MDP run, else 1."""
+    semdp = (metrics or {}).get("semdp")
+    if isinstance(semdp, dict) and isinstance(semdp.get("k"), int) and semdp["k"] >= 1:
+        return int(semdp["k"])
+    file = path / CONFIG_NAME
+    if not file.is_file():
+        return 1
+    try:
+        config = yaml.safe_load(file.read_text(errors="replace"))
+        wrapper = config["env"]["wrapper"]
+        if "SafetyEmbeddedEnv" in str(wrapper.get("_target_", "")):
+            return max(int(wrapper.get("k", 1)), 1)
+    except Exception:  # a malformed config only loses the scaling, never the run
+        return 1
+    return 1
+
+
 def load_run(path: Path) -> RunRecord:
     """Read one run directory; never raises on missing or malformed files."""
     path = Path(path)
     metrics, metrics_problem = _read_metrics(path)
     curves, progress_problem = read_progress(path)
+    if "env_steps" in curves:
+        curves["env_steps"] = curves["env_steps"] * steps_per_decision(path, metrics)
     problems = [p for p in (metrics_problem, progress_problem) if p]
     if metrics is None:
         names = _read_config_names(path)
