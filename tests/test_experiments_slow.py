@@ -113,12 +113,12 @@ def _two_job_sweep(tmp_path: Path, *launcher: str) -> None:
 
 
 @pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is None,
-                    reason="optional extra not installed: pip install hydra-submitit-launcher")
+                    reason="optional extra not installed: pip install -e '.[slurm]'")
 def test_submitit_local_launcher_runs_a_two_job_ci_sweep(tmp_path: Path) -> None:
     _two_job_sweep(tmp_path, "hydra/launcher=submitit_local", "hydra.launcher.timeout_min=20")
 
 
 @pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is None,
-                    reason="optional extra not installed: pip install hydra-ray-launcher")
+                    reason="optional extra not installed: pip install -e '.[ray]'")
 def test_ray_launcher_runs_a_two_job_ci_sweep_on_a_local_ray(tmp_path: Path) -> None:
     _two_job_sweep(tmp_path, "hydra/launcher=ray", "+hydra.launcher.ray.init.num_cpus=2")
