@@ -1,4 +1,4 @@
-"""The three packages keep their boundaries: solvers and sims are torch-free, Hydra-free libraries."""
+"""Package boundaries: solvers and sims are torch-free, Hydra-free libraries."""
 
 from __future__ import annotations
 
