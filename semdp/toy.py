@@ -218,7 +218,10 @@ def run(cfg: DictConfig, output_dir: Path) -> dict[str, Any]:
 def main(cfg: DictConfig) -> float:
     """Hydra entry point; returns the self-paced Lagrangian's final f (a sweeper's objective)."""
     output_dir = Path(HydraConfig.get().runtime.output_dir)
-    summary = run(cfg, output_dir)
+    try:
+        summary = run(cfg, output_dir)
+    except ValueError as error:  # bad input: one line naming the key, no traceback
+        raise SystemExit(f"semdp-toy: {error}") from None
     print(format_table(summary))
     print(
         f"wrote {output_dir / FIGURE_NAME} and {output_dir / SUMMARY_NAME} "

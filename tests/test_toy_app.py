@@ -81,6 +81,16 @@ def test_toy_run_rejects_non_numeric_start(tmp_path: Path) -> None:
     assert not (tmp_path / SUMMARY_NAME).exists()
 
 
+def test_toy_cli_reports_bad_start_in_one_line(tmp_path: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "semdp.toy", "x0=abc", f"hydra.run.dir={tmp_path}"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode != 0
+    assert "semdp-toy: x0 must be a finite real number, got 'abc'" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
 def test_toy_experiment_preset_sweeps_20_starts_over_three_intervals() -> None:
     cfg = _compose(["experiment=toy", "budget=ci"], return_hydra_config=True)
     starts = [float(v) for v in str(cfg.hydra.sweeper.params.x0).split(",")]
