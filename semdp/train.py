@@ -35,34 +35,38 @@ from semdp.paths import CONF_DIR
 logger = logging.getLogger(__name__)
 
 
+class ConfigError(ValueError):
+    """A bad configuration value, found before anything is built (the message names the key)."""
+
+
 def validate_config(cfg: DictConfig) -> None:
     """Fail fast, naming the offending key, before anything is built."""
 
     def number(key: str) -> float:
         value = OmegaConf.select(cfg, key)
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ValueError(f"{key} must be a number, got {value!r}")
+            raise ConfigError(f"{key} must be a number, got {value!r}")
         return float(value)
 
     if cfg.get("algo") is None or "_target_" not in cfg.algo:
-        raise ValueError("algo must be chosen from conf/algo (e.g. algo=ppo_lag); got none")
+        raise ConfigError("algo must be chosen from conf/algo (e.g. algo=ppo_lag); got none")
     cost_limit = number("cost_limit")
     if not math.isfinite(cost_limit) or cost_limit < 0:
-        raise ValueError(f"cost_limit must be a finite number >= 0, got {cost_limit}")
+        raise ConfigError(f"cost_limit must be a finite number >= 0, got {cost_limit}")
     for key in ("total_steps", "algo.steps_per_epoch"):
         if number(key) <= 0:
-            raise ValueError(f"{key} must be > 0, got {OmegaConf.select(cfg, key)}")
+            raise ConfigError(f"{key} must be > 0, got {OmegaConf.select(cfg, key)}")
     for key in ("eval_every", "eval_episodes", "final_eval_episodes", "checkpoint_every"):
         if number(key) < 0:
-            raise ValueError(f"{key} must be >= 0, got {OmegaConf.select(cfg, key)}")
+            raise ConfigError(f"{key} must be >= 0, got {OmegaConf.select(cfg, key)}")
     if number("seed") < 0:
-        raise ValueError(f"seed must be >= 0, got {cfg.seed}")
+        raise ConfigError(f"seed must be >= 0, got {cfg.seed}")
     if number("torch_threads") < 1:
-        raise ValueError(f"torch_threads must be >= 1, got {cfg.torch_threads}")
+        raise ConfigError(f"torch_threads must be >= 1, got {cfg.torch_threads}")
     if number("env.num_envs") < 1:
-        raise ValueError(f"env.num_envs must be >= 1, got {cfg.env.num_envs}")
+        raise ConfigError(f"env.num_envs must be >= 1, got {cfg.env.num_envs}")
     if not cfg.env.get("id"):
-        raise ValueError("env.id must name a gymnasium id, got none")
+        raise ConfigError("env.id must name a gymnasium id, got none")
 
 
 def build_algorithm(cfg: DictConfig) -> Algorithm:
@@ -92,7 +96,7 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
         run_dir = Path(resume)
         ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
         if not ckpt.is_file() or not (run_dir / "config.yaml").is_file():
-            raise ValueError(f"resume={resume}: no config.yaml and checkpoints/{CHECKPOINT_NAME}")
+            raise ConfigError(f"resume={resume}: no config.yaml and checkpoints/{CHECKPOINT_NAME}")
         cfg = OmegaConf.load(run_dir / "config.yaml")
         with open_dict(cfg):
             cfg.resume = str(resume)
@@ -148,6 +152,11 @@ def main(cfg: DictConfig) -> float | None:
     multirun = hydra_cfg.mode == RunMode.MULTIRUN
     try:
         metrics = run(cfg, hydra_cfg.runtime.output_dir)
+    except ConfigError as exc:
+        if not multirun:  # one line naming the key, no traceback
+            raise SystemExit(f"semdp-train: {exc}") from None
+        logger.error("bad config (the sweep continues): %s", exc)
+        return None
     except Exception as exc:
         if not multirun:
             raise

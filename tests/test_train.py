@@ -139,6 +139,20 @@ def test_train_bad_config_fails_fast_naming_the_key(
     assert not (tmp_path / "progress.csv").exists()
 
 
+def test_train_cli_bad_config_is_one_line_without_traceback(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", "semdp.train", "cost_limit=-1", "budget=ci",
+         f"hydra.run.dir={tmp_path}"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode != 0
+    assert "semdp-train: cost_limit must be a finite number >= 0, got -1.0" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
 def test_train_unknown_algo_names_the_algo_group(
     compose_train: Callable[..., DictConfig],
 ) -> None:
