@@ -94,6 +94,27 @@ def test_pillar_and_vase_contact_costs_only_at_level_2() -> None:
             assert max(i["cost_vases_contact"] for i in infos) == 1.0
 
 
+@pytest.mark.parametrize(("robot", "reach", "action"), [("mass", 0.1, (0.2, 0.0)),
+                                                       ("point", 0.15, (0.01, 0.0))])  # fmt: skip
+@pytest.mark.parametrize("scale", [1.0, 1.5])
+def test_pillar_contact_starts_at_pillar_radius_plus_scaled_robot_reach(robot, reach, action,
+                                                                         scale) -> None:
+    """Driving slowly (≤ 6 mm/step) at a planted pillar, the contact cost switches on when the
+    centre distance reaches pillar radius + the robot's reach along its heading (Mass: disc
+    radius 0.1; Point: nose tip 0.15), both times ``robot_scale``."""
+    env = SafetyGymEnv(robot, "push", 2, sizes={"robot_scale": scale})
+    env.reset(seed=0, options={"layout": {
+        "agent": (-1.0, 0.0), "agent_yaw": 0.0, "goal": (50, 50), "hazards": [],
+        "pillars": [(0.0, 0.0)], "push_box": (1.2, 1.2)}})  # fmt: skip
+    for _ in range(400):
+        if env.step(action)[4]["cost_pillars"]:
+            break
+    else:
+        pytest.fail("never touched the pillar")
+    distance = float(np.linalg.norm(env.robot_position))
+    assert distance == pytest.approx(0.2 + reach * scale, abs=0.01)
+
+
 # ------------------------------------------------------------------ rewards (spec §7)
 @pytest.mark.parametrize(("robot", "action", "yaw"), [("point", (1.0, 0.0), 0.0),
                                                      ("car", (1.0, 1.0), math.pi / 2),

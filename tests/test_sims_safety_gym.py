@@ -8,6 +8,7 @@ import warnings
 
 import gymnasium
 import numpy as np
+import pymunk
 import pytest
 from gymnasium.utils.env_checker import check_env
 
@@ -254,6 +255,45 @@ def test_sizes_override_changes_geometry_and_cost_radius() -> None:
         SafetyGymEnv("point", "push", 1, sizes={"wall": 1.0})
     with pytest.raises(ValueError, match="positive"):
         SafetyGymEnv("point", "push", 1, sizes={"box_half": -1.0})
+
+
+def _robot_extent(env) -> float:
+    """Largest distance of a robot collision-shape bounding-box corner from the root."""
+    x, y = env.body.position
+    return max(max(abs(s.bb.left - x), abs(s.bb.right - x), abs(s.bb.bottom - y),
+                   abs(s.bb.top - y)) for s in env.body.shapes)
+
+
+@pytest.mark.parametrize(("robot", "extent"), [("point", 0.15), ("car", 0.175), ("mass", 0.1)])
+def test_robot_scale_scales_the_collision_shapes_only(robot: str, extent: float) -> None:
+    layout = {"layout": {"agent": (0.0, 0.0), "agent_yaw": 0.0}}
+    default = SafetyGymEnv(robot, "push", 1)
+    default.reset(seed=0, options=layout)
+    assert default.robot_scale == 1.0 and _robot_extent(default) == pytest.approx(extent)
+    env = SafetyGymEnv(robot, "push", 1, sizes={"robot_scale": 1.3})
+    env.reset(seed=0, options=layout)
+    assert env.robot_scale == 1.3 and _robot_extent(env) == pytest.approx(1.3 * extent)
+    assert (env.body.mass, env.body.moment) == (default.body.mass, default.body.moment)
+    for _ in range(20):  # same actuator response in free space
+        obs, *_ = env.step((1.0, 0.3))
+        ref, *_ = default.step((1.0, 0.3))
+    np.testing.assert_array_equal(env.robot_position, default.robot_position)
+    np.testing.assert_array_equal(obs[:12], ref[:12])
+
+
+def test_robot_scale_bad_values_raise_and_make_passes_it_through() -> None:
+    for bad in (0.0, -1.3, float("nan"), float("inf"), "big"):
+        with pytest.raises(ValueError, match=r"robot_scale.*positive"):
+            SafetyGymEnv("point", "push", 1, sizes={"robot_scale": bad})
+    with pytest.raises(ValueError, match="robot_scale"):  # listed among the valid keys
+        SafetyGymEnv("point", "push", 1, sizes={"robot_radius": 0.13})
+    env = gymnasium.make("sims/SafetyPointPush1-v0", sizes={"robot_scale": 1.3},
+                         render_mode="rgb_array", render_size=64)
+    env.reset(seed=0)
+    assert env.unwrapped.robot_scale == 1.3
+    radii = [s.radius for s in env.unwrapped.body.shapes if isinstance(s, pymunk.Circle)]
+    assert radii == [pytest.approx(0.13)]
+    assert env.render().shape == (64, 64, 3)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

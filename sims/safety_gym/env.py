@@ -85,7 +85,9 @@ class SafetyGymEnv(gymnasium.Env):
         render_mode: ``None`` or ``"rgb_array"`` (top-down frames).
         render_size: frame side in pixels.
         sizes: optional overrides of ``hazard_radius``, ``pillar_radius``, ``box_half`` and
-            ``goal_size`` (perturbed variants; the defaults are the spec's).
+            ``goal_size`` (m), and ``robot_scale`` (factor on the robot's collision shapes
+            about its root; mass, inertia, actuators and sensors stay nominal) for perturbed
+            variants; the defaults are the spec's (``robot_scale`` 1.0).
 
     Reset options: ``{"layout": {...}}`` plants positions: ``"agent": (x, y)``,
     ``"agent_yaw": float`` and, per object type, a list of ``(x, y)`` (its length may differ
@@ -124,6 +126,7 @@ class SafetyGymEnv(gymnasium.Env):
         self.goal_size = cfg.BUTTON_GOAL_SIZE if task == "button" else cfg.GOAL_SIZE
         self.box_half, self.box_mass = cfg.BOX_GEOMETRY[robot]
         self.pillar_radius = cfg.PILLAR_RADIUS
+        self.robot_scale = 1.0
         self._apply_sizes(sizes)
         self._constrained = {k: v.constrained for k, v in objs.items()}
         self._cost_keys = self._make_cost_keys()
@@ -161,12 +164,17 @@ class SafetyGymEnv(gymnasium.Env):
         "pillar_radius",
         "box_half",
         "goal_size",
+        "robot_scale",
     )
 
     def _apply_sizes(self, sizes: Mapping[str, float] | None) -> None:
         """Override object sizes (for perturbed variants, e.g. a real-robot-like Push).
 
         Keepouts stay the spec's; the box mass scales with its area (constant density).
+        ``robot_scale`` scales the robot's collision shapes only (``Robot.scale``): its mass
+        and inertia stay nominal, so the calibrated actuator response is unchanged; the hazard
+        cost (root inside the disc), the rewards (positions) and the LiDAR origin (the root)
+        do not depend on the shape.
         """
         if not sizes:
             return
@@ -174,11 +182,17 @@ class SafetyGymEnv(gymnasium.Env):
         if bad:
             raise ValueError(f"unknown size keys {sorted(bad)}; valid: {list(self.SIZE_KEYS)}")
         for key, value in sizes.items():
-            value = float(value)
+            try:
+                value = float(value)
+            except (TypeError, ValueError) as err:
+                raise ValueError(
+                    f"sizes[{key!r}] must be a positive number, got {value!r}") from err
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"sizes[{key!r}] must be a positive number, got {value!r}")
             if key == "box_half":
                 self.box_mass *= (value / self.box_half) ** 2
+            elif key == "robot_scale":
+                self.robot.scale = value
             setattr(self, key, value)
 
     def _make_cost_keys(self) -> tuple[str, ...]:

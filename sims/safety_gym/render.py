@@ -89,7 +89,8 @@ def render_topdown(env: SafetyGymEnv, size: int = 256) -> np.ndarray:
     body_shapes(env.body, COLOURS["robot"])
     rx, ry = env.body.position
     yaw = env.robot_forward_heading
-    draw.line([px(rx, ry), px(rx + 0.18 * math.cos(yaw), ry + 0.18 * math.sin(yaw))],
+    tip = 0.18 * env.robot_scale  # past the Point's nose (0.15), the Car's bumper (0.175)
+    draw.line([px(rx, ry), px(rx + tip * math.cos(yaw), ry + tip * math.sin(yaw))],
               fill=COLOURS["heading"], width=max(1, size // 128))  # fmt: skip
     disc(draw, rx, ry, 0.025, COLOURS["heading"])
 

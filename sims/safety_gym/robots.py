@@ -53,6 +53,11 @@ class Robot:
     Attributes:
         name: ``"point"``, ``"car"`` or ``"mass"``.
         dt: env step (s); ``substeps`` pymunk steps of ``dt / substeps`` each.
+        scale: factor on every collision shape's coordinates about the body origin (the root
+            node): 1.0 is the spec's shape. Mass, moment of inertia, actuator model and sensors
+            stay the nominal ones, so the calibrated speed and yaw responses are unchanged and
+            only the footprint (contacts with the box, vases, pillars, gremlins, buttons)
+            differs.
         forward_offset: angle of the driving direction relative to body +x (rad).
         sensor_sizes: sensor names and sizes in observation order (spec §9.1, §9.3).
     """
@@ -71,8 +76,11 @@ class Robot:
         ("magnetometer", 3),
     )
 
-    def __init__(self) -> None:
+    def __init__(self, scale: float = 1.0) -> None:
+        if not (math.isfinite(scale) and scale > 0.0):
+            raise ValueError(f"robot scale must be a positive number, got {scale!r}")
         self.h = self.dt / self.substeps
+        self.scale = float(scale)
 
     def shapes(self, body: pymunk.Body) -> list[pymunk.Shape]:
         """Collision shapes in the body frame."""
@@ -116,7 +124,11 @@ class Robot:
         return []
 
 
-def _box_poly(body: pymunk.Body, x0: float, y0: float, x1: float, y1: float) -> pymunk.Poly:
+def _box_poly(
+    body: pymunk.Body, x0: float, y0: float, x1: float, y1: float, scale: float = 1.0
+) -> pymunk.Poly:
+    """Axis-aligned box [x0, x1] x [y0, y1] in the body frame, scaled about the body origin."""
+    x0, y0, x1, y1 = x0 * scale, y0 * scale, x1 * scale, y1 * scale
     return pymunk.Poly(body, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
 
 
@@ -136,15 +148,17 @@ class PointRobot(Robot):
     yaw_actions = (0.0, 0.09, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
     yaw_rates = (0.0, 0.0, 0.033, 0.264, 0.495, 0.78, 1.0, 1.35, 1.69, 2.06, 2.44, 2.81, 3.0)
 
-    def __init__(self) -> None:
-        super().__init__()
+    def __init__(self, scale: float = 1.0) -> None:
+        super().__init__(scale)
         self.decay = math.exp(-self.h * self.damping / self.mass)
         self.force = 0.0
         self.yaw_rate = 0.0
 
     def shapes(self, body: pymunk.Body) -> list[pymunk.Shape]:
-        """Sphere r=0.1 at the origin plus the 0.1 x 0.1 nose box spanning x in [0.05, 0.15]."""
-        return [pymunk.Circle(body, self.radius), _box_poly(body, 0.05, -0.05, 0.15, 0.05)]
+        """Sphere r=0.1 at the origin plus the 0.1 x 0.1 nose box spanning x in [0.05, 0.15]
+        (times ``scale``)."""
+        s = self.scale
+        return [pymunk.Circle(body, self.radius * s), _box_poly(body, 0.05, -0.05, 0.15, 0.05, s)]
 
     def reset_state(self) -> None:
         self.force = 0.0
@@ -192,8 +206,8 @@ class CarRobot(Robot):
     edge_rates = (0.0, 0.379, 0.623, 1.025, 1.321)
     reverse_factor = 0.761 / 0.775  # measured: full reverse is 1.8% slower than full forward
 
-    def __init__(self) -> None:
-        super().__init__()
+    def __init__(self, scale: float = 1.0) -> None:
+        super().__init__(scale)
         self.decay = math.exp(-self.h / self.lag_s)
         self.lateral_decay = math.exp(-self.h / self.lateral_lag_s)
         self.target_speed = 0.0
@@ -201,13 +215,15 @@ class CarRobot(Robot):
         self.ball = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
 
     def shapes(self, body: pymunk.Body) -> list[pymunk.Shape]:
-        """Chassis, bumpers and wheels: footprint x in [−0.155, 0.155], y in [−0.175, 0.16]."""
+        """Chassis, bumpers and wheels: footprint x in [−0.155, 0.155], y in [−0.175, 0.16]
+        (times ``scale``; the caster-ball sensors keep the nominal ball)."""
+        s = self.scale
         return [
-            _box_poly(body, -0.1, -0.1, 0.1, 0.1),
-            _box_poly(body, -0.1, 0.14, 0.1, 0.16),
-            _box_poly(body, -0.05, -0.175, 0.05, -0.1),
-            _box_poly(body, -0.155, 0.05, -0.105, 0.15),
-            _box_poly(body, 0.105, 0.05, 0.155, 0.15),
+            _box_poly(body, -0.1, -0.1, 0.1, 0.1, s),
+            _box_poly(body, -0.1, 0.14, 0.1, 0.16, s),
+            _box_poly(body, -0.05, -0.175, 0.05, -0.1, s),
+            _box_poly(body, -0.155, 0.05, -0.105, 0.15, s),
+            _box_poly(body, 0.105, 0.05, 0.155, 0.15, s),
         ]
 
     def reset_state(self) -> None:
@@ -307,14 +323,14 @@ class MassRobot(Robot):
     max_delta = 0.03  # metres per env step at |a| = 1
     rotates = False
 
-    def __init__(self) -> None:
-        super().__init__()
+    def __init__(self, scale: float = 1.0) -> None:
+        super().__init__(scale)
         self.vx = 0.0
         self.vy = 0.0
 
     def shapes(self, body: pymunk.Body) -> list[pymunk.Shape]:
-        """A disc of radius 0.1 (the Point's sphere without the nose)."""
-        return [pymunk.Circle(body, self.radius)]
+        """A disc of radius 0.1 (the Point's sphere without the nose; times ``scale``)."""
+        return [pymunk.Circle(body, self.radius * self.scale)]
 
     def reset_state(self) -> None:
         self.vx = 0.0
