@@ -16,6 +16,7 @@ from omegaconf import DictConfig, OmegaConf
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.experiments.tradeoff import is_semdp_env, with_clearance
 from semdp.experiments.transfer import (
+    DEFAULT_SIZES,
     ObservationNoise,
     SuccessOnGoal,
     transfer_env_config,
@@ -128,6 +129,9 @@ def test_semdp_goal_and_tradeoff_and_transfer_presets() -> None:
     transfer = preset("transfer", "ci")
     assert transfer.post_train._target_ == "semdp.experiments.transfer.after_training"
     assert sweep(transfer)["method"] == "ours,trpo_lag"
+    # the preset's variant is the CLI's (`eval`): smaller objects, larger goal and robot
+    assert dict(transfer.post_train.sizes) == DEFAULT_SIZES
+    assert DEFAULT_SIZES["robot_scale"] == 1.3
 
 
 def _semdp_env_node() -> dict[str, Any]:
@@ -205,17 +209,20 @@ def test_success_on_goal_ends_the_episode_with_success() -> None:
 def test_transfer_variant_resizes_objects_and_cuts_episodes() -> None:
     node = {"id": "sims/SafetyPointPush1-v0", "num_envs": 1, "kwargs": {}, "wrapper": None,
             "eval_wrapper": None}
-    sizes = {"hazard_radius": 0.2, "goal_size": 0.45}
+    sizes = {"hazard_radius": 0.2, "goal_size": 0.45, "robot_scale": 1.3}
     out = transfer_env_config(node, sizes, noise_std=0.05, episode_steps=60)
     assert out["kwargs"] == {"sizes": sizes, "max_episode_steps": 60} and node["kwargs"] == {}
     env = out["eval_wrapper"](gym.make(out["id"], **out["kwargs"]))
     assert env.unwrapped.goal_size == 0.45 and env.unwrapped.hazard_radius == 0.2
+    assert env.unwrapped.robot_scale == 1.3
     env.reset(seed=0)
     steps, done, info = 0, False, {}
     while not done:
         _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
         steps, done = steps + 1, terminated or truncated
     assert steps == 60 and info["success"] == 0.0  # a robot standing still never scores
+    radii = [s.radius for s in env.unwrapped.body.shapes if s.radius > 0.0]
+    assert radii == [pytest.approx(0.13)]  # the Point's sphere, 1.3 x 0.1
     with pytest.raises(ValueError, match="Push"):
         transfer_env_config({**node, "id": "sims/SafetyPointGoal1-v0"}, sizes, 0.0, 60)
     with pytest.raises(ValueError, match="episode_steps"):
