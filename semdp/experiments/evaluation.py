@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import torch
 from omegaconf import DictConfig, OmegaConf
 
 from semdp.algos.base import CHECKPOINT_NAME, Algorithm
@@ -23,6 +24,9 @@ logger = logging.getLogger(__name__)
 def load_trained(run_dir: str | Path) -> tuple[Algorithm, DictConfig]:
     """Rebuild the algorithm of a finished run from ``config.yaml`` and ``checkpoints/last.pt``.
 
+    Sets torch's thread count to the run's ``torch_threads`` (1 by default), as training did:
+    float reductions depend on it, so an evaluation is reproducible on any machine.
+
     Raises:
         ValueError: ``run_dir`` lacks ``config.yaml`` or the checkpoint.
     """
@@ -33,6 +37,7 @@ def load_trained(run_dir: str | Path) -> tuple[Algorithm, DictConfig]:
     if not (run_dir / "config.yaml").is_file() or not ckpt.is_file():
         raise ValueError(f"{run_dir} is not a finished run dir (needs config.yaml and {ckpt.name})")
     cfg = OmegaConf.load(run_dir / "config.yaml")
+    torch.set_num_threads(int(cfg.get("torch_threads", 1) or 1))
     algo = build_algorithm(cfg)
     algo.load_checkpoint(ckpt)
     return algo, cfg
