@@ -253,7 +253,8 @@ def test_planner_batch_matches_loop(planners, backend) -> None:
     starts = [p.start for p in problems]
     subgoals = [p.subgoal for p in problems]
     obstacles = [p.obstacles for p in problems]
-    batch = planner.plan_batch(starts, subgoals, obstacles)
+    # workers=1: one after the other here (helper processes: tests/test_planner_batch.py)
+    batch = planner.plan_batch(starts, subgoals, obstacles, workers=1)
     loop = [
         planner.plan(s, g, o, warm_start=False)
         for s, g, o in zip(starts, subgoals, obstacles, strict=True)

@@ -35,9 +35,13 @@ def test_plan_cli_reports_bad_input_without_traceback(tmp_path: Path) -> None:
 
 
 def test_planner_benchmark_writes_table_and_csv(tmp_path: Path, capsys) -> None:
-    planner_bench.main(["backends=[ipopt,lm]", "n=6", "seed=1", "batch=3", f"out={tmp_path}"])
+    planner_bench.main(["backends=[ipopt,lm]", "n=6", "seed=1", "batch=3", "workers=1",
+                        f"out={tmp_path}"])
     printed = capsys.readouterr().out
     assert "| ipopt |" in printed and "| lm[batch3] |" in printed
+    assert "| ipopt[batch3] | 3 | 1 (0) |" in printed  # the batch-vs-loop table
     summary = (tmp_path / "planner_summary.csv").read_text().splitlines()
-    assert summary[0].startswith("variant,n,median_ms,mean_ms") and len(summary) == 4
-    assert len((tmp_path / "planner_results.csv").read_text().splitlines()) == 1 + 3 * 6
+    assert summary[0].startswith("variant,n,median_ms,mean_ms") and len(summary) == 5
+    assert len((tmp_path / "planner_results.csv").read_text().splitlines()) == 1 + 4 * 6
+    batch = (tmp_path / "planner_batch.csv").read_text().splitlines()
+    assert batch[0].startswith("variant,batch,workers,helpers,loop_ms,batch_ms") and len(batch) == 3

@@ -2,15 +2,18 @@
 
 Usage::
 
-    semdp-bench planner backends=[ipopt,lm,lm_adaptive,scp] n=500 seed=0 batch=16 out=DIR
+    semdp-bench planner backends=[ipopt,lm,lm_adaptive,scp] n=500 seed=0 batch=[4,16] out=DIR
 
 Variants: ``ipopt``, ``lm`` (fixed lambda, 10 iterations: the training setting), ``lm_adaptive``
 (lambda doubled until certified, up to 1024: the evaluation setting), ``scp``; append ``_cont``
-for the continuous (segment) certificate, e.g. ``scp_cont``. ``batch=B`` adds a row for the LM
-batch entry point (B problems per call; its times are per-call means, so compare them with
-the ``mean ms`` column). Prints a table and writes ``planner_summary.csv`` and
-``planner_results.csv`` (one row per problem and variant) to ``out``
-(default ``outputs/benchmarks/planner``).
+for the continuous (segment) certificate, e.g. ``scp_cont``. ``batch=B`` (or a list,
+``batch=[4,16]``; ``batch=1`` for none) adds a row ``variant[batchB]`` per variant for
+``plan_batch`` on B problems per call (``workers=W`` passes ``workers`` to it; default its own).
+Its times are per problem (call time / B), so compare them with the ``mean ms`` column. A
+second table sets the batch against a loop of ``plan`` over the same chunks, timed alternately
+with it (same machine load), and gives the largest waypoint difference between the two. Writes
+``planner_summary.csv``, ``planner_results.csv`` (one row per problem and variant) and
+``planner_batch.csv`` to ``out`` (default ``outputs/benchmarks/planner``).
 """
 
 from __future__ import annotations
@@ -42,11 +45,10 @@ def _parse(argv: list[str]) -> dict[str, str]:
             raise SystemExit(f"expected key=value arguments, got {item!r}")
         key, value = item.split("=", 1)
         args[key.strip()] = value.strip()
-    unknown = set(args) - {"backends", "n", "seed", "batch", "out", "max_count"}
+    valid = {"backends", "n", "seed", "batch", "out", "max_count", "workers"}
+    unknown = set(args) - valid
     if unknown:
-        raise SystemExit(
-            f"unknown arguments {sorted(unknown)}; valid: backends, n, seed, batch, out, max_count"
-        )
+        raise SystemExit(f"unknown arguments {sorted(unknown)}; valid: {', '.join(sorted(valid))}")
     return args
 
 
@@ -65,7 +67,8 @@ def main(argv: list[str]) -> None:
     names = [s.strip() for s in listed.split(",")]
     n = int(args.get("n", 500))
     seed = int(args.get("seed", 0))
-    batch = int(args.get("batch", 16))
+    sizes = [int(b) for b in args.get("batch", "16").strip("[]").split(",") if b.strip()]
+    workers = int(args["workers"]) if "workers" in args else None
     out = Path(args.get("out", REPO_ROOT / "outputs" / "benchmarks" / "planner"))
     problems = random_problems(n, seed, max_count=int(args.get("max_count", 8)))
     rows: list[dict[str, object]] = []
@@ -73,18 +76,12 @@ def main(argv: list[str]) -> None:
     objectives: dict[str, np.ndarray] = {}
     reached: dict[str, np.ndarray] = {}
     runs: list[tuple[str, dict[str, object], int]] = [(v, _variant_kwargs(v), 1) for v in names]
-    if batch > 1 and any(v.startswith("lm") for v in names):
-        runs.append((f"lm[batch{batch}]", _variant_kwargs("lm"), batch))
+    runs += [(f"{v}[batch{b}]", _variant_kwargs(v), b) for b in sizes if b > 1 for v in names]
+    batch_rows: list[dict[str, object]] = []
     for label, kwargs, size in runs:
         planner = SafeTrajectoryPlanner(**kwargs).warmup()
         for problem in problems[:20]:  # build every compiled slot count before timing
             planner.plan(problem.start, problem.subgoal, problem.obstacles, warm_start=False)
-        if size > 1:
-            planner.plan_batch(
-                [p.start for p in problems[:size]],
-                [p.subgoal for p in problems[:size]],
-                [p.obstacles for p in problems[:size]],
-            )
         times = np.zeros(n)
         results = []
         if size == 1:
@@ -96,16 +93,8 @@ def main(argv: list[str]) -> None:
                 times[k] = time.perf_counter() - tic
                 results.append(result)
         else:
-            for lo in range(0, n, size):
-                chunk = problems[lo : lo + size]
-                tic = time.perf_counter()
-                out_chunk = planner.plan_batch(
-                    [p.start for p in chunk],
-                    [p.subgoal for p in chunk],
-                    [p.obstacles for p in chunk],
-                )
-                times[lo : lo + len(chunk)] = (time.perf_counter() - tic) / len(chunk)
-                results.extend(out_chunk)
+            batch_rows.append(_run_batches(planner, problems, size, workers, times, results))
+            batch_rows[-1]["variant"] = label
         objective = np.array([r.objective for r in results])
         objectives[label] = objective
         reached[label] = np.array([r.reached_subgoal for r in results])
@@ -171,4 +160,64 @@ def main(argv: list[str]) -> None:
             f"{row['iters_median']:.0f} | "
             f"{row['speedup_vs_theseus']:.0f} |"
         )
-    print(f"wrote {out / 'planner_summary.csv'} and {out / 'planner_results.csv'}")
+    if batch_rows:
+        with open(out / "planner_batch.csv", "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(batch_rows[0]))
+            writer.writeheader()
+            writer.writerows(batch_rows)
+        print()
+        print("| variant | B | workers (helpers ready) | loop ms/problem | batch ms/problem "
+              "| speed-up | max waypoint diff vs loop (m) |")
+        print("|" + "---|" * 7)
+        for row in batch_rows:
+            print(
+                f"| {row['variant']} | {row['batch']} | {row['workers']} ({row['helpers']}) | "
+                f"{row['loop_ms']:.3f} | {row['batch_ms']:.3f} | {row['speedup']:.2f} | "
+                f"{row['max_diff']:.1e} |"
+            )
+    print(f"wrote {out / 'planner_summary.csv'} and {out / 'planner_results.csv'}"
+          + (f" and {out / 'planner_batch.csv'}" if batch_rows else ""))
+
+
+def _run_batches(
+    planner: SafeTrajectoryPlanner,
+    problems: list,
+    size: int,
+    workers: int | None,
+    times: np.ndarray,
+    results: list,
+) -> dict[str, object]:
+    """Time ``plan_batch`` on chunks of ``size`` and a loop of ``plan`` on the same chunks.
+
+    The two alternate chunk by chunk (and which goes first alternates too), so both see the same
+    machine load. Fills ``times`` (per problem: call time / chunk size) and ``results`` with the
+    batch's and returns the comparison row.
+    """
+    helpers = planner.start_batch_workers(workers)
+    loop_total = batch_total = max_diff = 0.0
+    for index, lo in enumerate(range(0, len(problems), size)):
+        chunk = problems[lo : lo + size]
+        starts = [p.start for p in chunk]
+        subgoals = [p.subgoal for p in chunk]
+        obstacles = [p.obstacles for p in chunk]
+        for batch_first in ((True, False) if index % 2 == 0 else (False, True)):
+            tic = time.perf_counter()
+            if batch_first:
+                out_chunk = planner.plan_batch(starts, subgoals, obstacles, workers=workers)
+                elapsed = time.perf_counter() - tic
+                batch_total += elapsed
+                times[lo : lo + len(chunk)] = elapsed / len(chunk)
+            else:
+                loop = [planner.plan(s, g, o, warm_start=False)
+                        for s, g, o in zip(starts, subgoals, obstacles, strict=True)]
+                loop_total += time.perf_counter() - tic
+        results.extend(out_chunk)
+        for a, b in zip(out_chunk, loop, strict=True):
+            max_diff = max(max_diff, float(np.max(np.abs(a.waypoints - b.waypoints))))
+    n = len(problems)
+    return {
+        "variant": "", "batch": size,
+        "workers": "default" if workers is None else workers, "helpers": helpers,
+        "loop_ms": 1e3 * loop_total / n, "batch_ms": 1e3 * batch_total / n,
+        "speedup": loop_total / batch_total, "max_diff": max_diff,
+    }

@@ -17,6 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from solvers.planner.batch import (
+    MIN_SHARED_WORK_S,
+    default_workers,
+    failure_error,
+    get_pool,
+    is_failure,
+    planner_blob,
+)
 from solvers.planner.geometry import point_distances, segment_distances
 from solvers.planner.ipopt import IPOPT_OPTIONS, IpoptProgram, build_ipopt, solve_ipopt
 from solvers.planner.lm import LMKernel, LMWeights, build_lm_functions, levenberg_marquardt
@@ -187,6 +195,8 @@ class SafeTrajectoryPlanner:
         self._ipopt: dict[tuple[int, str], IpoptProgram] = {}
         self._scp: dict[int, ScpProgram] = {}
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._batch_cache: tuple[object, bytes, bytes] | None = None
+        self._batch_mean_s: float | None = None
 
     # ------------------------------------------------------------------ public API
     def plan(
@@ -234,14 +244,43 @@ class SafeTrajectoryPlanner:
         starts: Sequence[Sequence[float]] | np.ndarray,
         subgoals: Sequence[Sequence[float]] | np.ndarray,
         obstacles_list: Sequence[object],
+        workers: int | None = None,
     ) -> list[PlanResult]:
         """Plan several independent problems (e.g. one per vectorised environment).
 
-        The problems are solved one after the other with the cached compiled solvers, without
-        warm starts between them. A lockstep variant (one mapped CasADi call and one
-        block-diagonal banded LAPACK solve per LM iteration for all problems) was measured no
-        faster on a 2-core CPU (the buffered single evaluation costs 15 us against 17 us per
-        problem mapped, plus padding to the batch's largest obstacle count), so it was dropped.
+        Every problem is solved as ``plan(start, subgoal, obstacles, warm_start=False)`` solves
+        it, certificate and fallback included, so the plans equal those of a loop of ``plan``
+        calls: exactly for IPOPT and LM, to about 1e-8 m for SCP (OSQP carries rounding state
+        from one QP to the next, so SCP plans depend slightly on the problems solved before, in a
+        loop too). Afterwards the warm-start memory holds the last problem, as after the loop.
+
+        Speed comes from a second core: the problems are shared with ``workers - 1`` helper
+        processes (:mod:`solvers.planner.batch`), which claim them one at a time. Threads cannot
+        do this: CasADi keeps the GIL while IPOPT or an LM kernel runs (a thread pool measured
+        0.9-1.0x the loop). The helpers start on the first call that wants them and build each
+        planner configuration once; until they are ready the batch runs here alone, so call
+        :meth:`start_batch_workers` to start them ahead. The gain needs an idle core: when every
+        core is busy with other jobs, sharing gains little or nothing (see solvers/README.md). A
+        lockstep LM variant (one mapped CasADi call and one block-diagonal banded solve per
+        iteration for all problems) was measured no faster than the loop and was dropped.
+
+        Args:
+            starts: (B, 2) start positions.
+            subgoals: (B, 2) subgoals.
+            obstacles_list: B obstacle arrays ((m, 2) or (m, 3); None or empty for none).
+            workers: Processes solving, this one included. None (default): up to
+                ``min(2, usable CPUs)``, but a batch whose problems are expected to take less
+                than :data:`~solvers.planner.batch.MIN_SHARED_WORK_S` (3 ms) in all (from the
+                running mean of ``solve_time_s`` over earlier batches) is solved here alone, as
+                the round trip to a helper would cost about what it saves. An explicit
+                ``workers > 1`` always shares; 1 solves the problems one after the other here.
+
+        Returns:
+            One certified :class:`PlanResult` per problem, in order.
+
+        Raises:
+            ValueError: Mismatched shapes, ``workers < 1``, or a problem ``plan`` rejects (the
+                first such problem's error).
         """
         starts_arr = np.asarray(starts, dtype=float)
         subgoals_arr = np.asarray(subgoals, dtype=float)
@@ -257,10 +296,91 @@ class SafeTrajectoryPlanner:
                 f"obstacles_list must have one entry per start ({len(starts_arr)}), "
                 f"got {len(obstacles_list)}"
             )
-        return [
-            self.plan(s, g, o, warm_start=False)
-            for s, g, o in zip(starts_arr, subgoals_arr, obstacles_list, strict=True)
-        ]
+        count = default_workers() if workers is None else workers
+        if int(count) != count or count < 1:
+            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+        tasks = list(zip(starts_arr, subgoals_arr, obstacles_list, strict=True))
+        share = count > 1 and len(tasks) > 1
+        expected = self._batch_mean_s
+        if share and workers is None and expected is not None:
+            share = len(tasks) * expected >= MIN_SHARED_WORK_S
+        shared = self._plan_shared(tasks, int(count)) if share else None
+        if shared is None:
+            results = [self.plan_task(task) for task in tasks]
+        else:
+            for value in shared:
+                if is_failure(value):
+                    raise failure_error(value)
+            start, subgoal = starts_arr[-1], subgoals_arr[-1]
+            self._previous = (start.copy(), start + (subgoal - start),
+                              shared[-1].waypoints.copy())
+            results = shared
+        if results:
+            mean = float(np.mean([r.solve_time_s for r in results]))
+            self._batch_mean_s = mean if expected is None else 0.75 * expected + 0.25 * mean
+        return results
+
+    def plan_task(self, task: tuple[object, object, object]) -> PlanResult:
+        """``plan(start, subgoal, obstacles, warm_start=False)`` for a (start, subgoal,
+        obstacles) tuple: one problem of a batch."""
+        start, subgoal, obstacles = task
+        return self.plan(start, subgoal, obstacles, warm_start=False)
+
+    def start_batch_workers(self, workers: int | None = None, timeout: float = 60.0) -> int:
+        """Start the helper processes of :meth:`plan_batch` now and wait until they are ready.
+
+        Args:
+            workers: As in :meth:`plan_batch` (helpers: ``workers - 1``).
+            timeout: Seconds to wait at most.
+
+        Returns:
+            The number of helpers ready to solve this planner's problems.
+        """
+        count = default_workers() if workers is None else int(workers)
+        if count <= 1:
+            return 0
+        pool = get_pool()
+        blob, digest = self._batch_config()
+        with pool.lock:
+            return pool.wait_ready(count - 1, digest, blob, timeout)
+
+    def _batch_config(self) -> tuple[bytes, bytes]:
+        """The pickled configuration sent to the helpers and its digest, cached while the
+        settings (every scalar attribute, the LM weights and the IPOPT options) stay the same."""
+        fingerprint = (
+            tuple((k, v) for k, v in sorted(self.__dict__.items())
+                  if isinstance(v, bool | int | float | str) and not k.startswith("_batch")),
+            self._lm_weights,
+            tuple(sorted((k, repr(v)) for k, v in self.ipopt_options.items())),
+        )
+        cached = self._batch_cache
+        if cached is None or cached[0] != fingerprint:
+            state = self.__getstate__()
+            state["_previous"] = None
+            cached = (fingerprint, *planner_blob(state))
+            self._batch_cache = cached
+        return cached[1], cached[2]
+
+    def _plan_shared(self, tasks: list[tuple[object, object, object]], count: int) -> list | None:
+        """Solve ``tasks`` here and in the helper processes; None when no helper is ready."""
+        try:
+            pool = get_pool()
+        except OSError as error:  # no shared memory: solve here
+            logger.warning("planner batch helpers unavailable: %r", error)
+            return None
+        if not pool.lock.acquire(blocking=False):  # another thread is using the helpers
+            return None
+        try:
+            blob, digest = self._batch_config()
+            helpers = pool.prepare(count - 1, digest, blob)
+            if not helpers:
+                return None
+            # plain lists pickle several times faster than small arrays; same values
+            wire = [(s.tolist(), g.tolist(), o.tolist() if isinstance(o, np.ndarray) else o)
+                    for s, g, o in tasks]
+            return pool.run(self.plan_task, tasks, wire, helpers, digest)
+        finally:
+            pool.lock.release()
 
     def __getstate__(self) -> dict[str, object]:
         """Pickle without the compiled solvers (CasADi/OSQP objects); they are rebuilt lazily.
@@ -271,6 +391,8 @@ class SafeTrajectoryPlanner:
         state["_lm_kernels"] = {}
         state["_ipopt"] = {}
         state["_scp"] = {}
+        state["_batch_cache"] = None  # digest of the configuration sent to batch helpers
+        state["_batch_mean_s"] = None  # running mean of solve_time_s over batches
         return state
 
     def warmup(self) -> SafeTrajectoryPlanner:

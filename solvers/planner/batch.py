@@ -1,0 +1,421 @@
+"""Helper processes that share the problems of ``SafeTrajectoryPlanner.plan_batch``.
+
+CasADi (IPOPT and the LM kernels) keeps the GIL while it evaluates, so Python threads cannot run
+two solves at once: a thread pool of planner clones measured 0.9-1.0x the loop for IPOPT and LM.
+The batch entry point therefore shares the problems with helper processes. Each helper is a
+fresh interpreter (``subprocess``, not ``fork``: safe next to torch's threads, and the caller's
+``__main__`` is not imported again) that keeps a copy of every planner configuration it was sent
+and solves with it exactly as :meth:`SafeTrajectoryPlanner.plan` does, certificate included.
+
+Work sharing: a page of shared memory (a temporary file mapped by every process) holds the batch
+id and one claim byte per problem. Each process walks the problems from its own starting offset
+and solves a problem only after writing its id into a free claim byte, so the work balances one
+problem at a time. Two processes that claim the same byte at the same instant both solve it (a
+harmless duplicate; the first result is kept); no problem is ever left out, because a process
+skips only problems someone else has claimed. The caller waits for the helpers that claimed
+problems and solves whatever is still missing itself (a helper that died), so a batch always
+completes.
+
+One pool serves every planner of a process; it is created on first use, belongs to the process
+that created it (a forked child starts its own) and is shut down at exit.
+"""
+
+from __future__ import annotations
+
+import atexit
+import hashlib
+import logging
+import mmap
+import os
+import pickle
+import struct
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from multiprocessing.connection import Connection, wait
+from pathlib import Path
+from typing import Any
+
+logger = logging.getLogger(__name__)
+
+#: Problems per round of claims (larger batches are shared in several rounds).
+CAPACITY = 4096
+#: With the default worker count, a batch is shared only when its problems are expected to take
+#: at least this long in all (s): below, the round trip to a helper and the wait for its last
+#: problem cost about as much as the helper saves (measured: LM, 4 problems of 0.4 ms).
+MIN_SHARED_WORK_S = 3e-3
+#: Helpers that may die (and be replaced) before the pool stops starting new ones.
+MAX_LOST = 3
+
+_HEADER = 8  # int64 batch id
+_MAIN_ID = 1
+_SIZE = _HEADER + CAPACITY
+_PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
+
+Task = tuple[Any, Any, Any]
+
+
+def usable_cpus() -> int:
+    """CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover (macOS, Windows)
+        return os.cpu_count() or 1
+
+
+def default_workers() -> int:
+    """Processes ``plan_batch`` uses by default: ``min(2, usable CPUs)``."""
+    return max(1, min(2, usable_cpus()))
+
+
+def planner_blob(state: dict[str, object]) -> tuple[bytes, bytes]:
+    """The pickled configuration of a planner (its state without caches) and its digest."""
+    blob = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+    return blob, hashlib.sha1(blob).digest()
+
+
+class _Helper:
+    """One helper process and the two pipes to it."""
+
+    def __init__(self, ident: int, shared_fd: int) -> None:
+        self.ident = ident
+        to_child_r, to_child_w = os.pipe()
+        from_child_r, from_child_w = os.pipe()
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(
+            [_PACKAGE_ROOT, *([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])]
+        )
+        for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            env.setdefault(name, "1")
+        try:
+            self.process = subprocess.Popen(
+                [
+                    sys.executable, "-c",
+                    "from solvers.planner.batch import helper_main; helper_main()",
+                    str(to_child_r), str(from_child_w), str(shared_fd), str(ident),
+                ],
+                pass_fds=(to_child_r, from_child_w, shared_fd),
+                env=env,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                # its own session: a Ctrl-C in the terminal interrupts the caller only (the helper
+                # ends when its pipe closes), and the helper is scheduled as its own group
+                start_new_session=True,
+            )
+        finally:
+            os.close(to_child_r)
+            os.close(from_child_w)
+        self.inbox = Connection(to_child_w, readable=False)
+        self.outbox = Connection(from_child_r, writable=False)
+        self.ready: set[bytes] = set()  # planner digests registered and warmed up
+        self.asked: set[bytes] = set()  # digests sent for registration
+        self.outstanding = 0  # batches sent and not answered yet
+        self.alive = True
+
+    def send(self, message: object) -> bool:
+        """Send ``message``; False when the helper has gone or the message does not pickle."""
+        try:
+            self.inbox.send(message)
+            return True
+        except OSError:
+            self.close()
+        except Exception as error:  # pickling fails before anything is written
+            logger.warning("could not send a batch to planner helper %d: %r", self.ident, error)
+        return False
+
+    def receive(self) -> tuple[Any, ...] | None:
+        """The next message, or None when the helper has gone."""
+        try:
+            return self.outbox.recv()
+        except (EOFError, OSError):
+            self.close()
+            return None
+
+    def close(self, *, wait_s: float = 0.0) -> None:
+        if self.alive:
+            self.alive = False
+            for connection in (self.inbox, self.outbox):
+                try:
+                    connection.close()
+                except OSError:  # pragma: no cover
+                    pass
+        if wait_s > 0:
+            try:
+                self.process.wait(timeout=wait_s)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+
+    def abandon(self) -> None:
+        """Drop the pipes inherited by a forked child without touching the helper."""
+        for connection in (self.inbox, self.outbox):
+            try:
+                connection.close()
+            except OSError:  # pragma: no cover
+                pass
+        self.alive = False
+
+
+class HelperPool:
+    """The helper processes of this process (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.pid = os.getpid()
+        self._file = tempfile.TemporaryFile()
+        self._file.truncate(_SIZE)
+        self.shared = mmap.mmap(self._file.fileno(), _SIZE)
+        self.helpers: list[_Helper] = []
+        self.batch_id = 0
+        self.lock = threading.Lock()
+        #: Problems solved by helpers (for tests and benchmarks).
+        self.solved_by_helpers = 0
+        self.lost = 0  # helpers that died or could not start
+        self.warned = False
+
+    # ---------------------------------------------------------------- helpers
+    def _ensure(self, count: int) -> list[_Helper]:
+        for helper in self.helpers:
+            if not helper.alive:
+                self.lost += 1
+                helper.close(wait_s=1.0)  # reap it (kill it if it still runs)
+        self.helpers = [h for h in self.helpers if h.alive]
+        used = {h.ident for h in self.helpers}
+        while len(self.helpers) < count and self.lost <= MAX_LOST:
+            ident = min(set(range(_MAIN_ID + 1, 256)) - used)
+            used.add(ident)
+            try:
+                self.helpers.append(_Helper(ident, self._file.fileno()))
+            except (OSError, ValueError) as error:  # no interpreter, no pass_fds (Windows)
+                logger.warning("could not start a planner helper process: %r", error)
+                self.lost = MAX_LOST + 1  # do not try again
+                break
+        if self.lost > MAX_LOST and not self.warned:
+            self.warned = True
+            logger.warning("planner batch helpers disabled after %d lost; plan_batch now "
+                           "solves one problem after the other", self.lost)
+        return self.helpers[:count]
+
+    def _handle(self, helper: _Helper, message: tuple[Any, ...]) -> None:
+        if message[0] == "registered":
+            _, digest, error = message
+            if error is None:
+                helper.ready.add(digest)
+            else:
+                logger.warning("planner helper %d could not build the planner: %s",
+                               helper.ident, error)
+        elif message[0] == "done":
+            helper.outstanding -= 1
+
+    def _drain(self, helpers: Sequence[_Helper]) -> None:
+        for helper in helpers:
+            while helper.alive and helper.outbox.poll(0):
+                message = helper.receive()
+                if message is not None:
+                    self._handle(helper, message)
+
+    def prepare(self, count: int, digest: bytes, blob: bytes) -> list[_Helper]:
+        """Start up to ``count`` helpers and register the planner; return the ready ones."""
+        helpers = self._ensure(count)
+        self._drain(helpers)
+        for helper in helpers:
+            if helper.alive and digest not in helper.asked:
+                helper.asked.add(digest)
+                helper.send(("register", digest, blob))
+        return [h for h in helpers if h.alive and digest in h.ready and h.outstanding == 0]
+
+    def wait_ready(self, count: int, digest: bytes, blob: bytes, timeout: float) -> int:
+        """Like :meth:`prepare`, but wait up to ``timeout`` s until every helper is ready."""
+        deadline = time.monotonic() + timeout
+        while True:
+            ready = self.prepare(count, digest, blob)
+            alive = [h for h in self.helpers[:count] if h.alive]
+            if len(ready) == len(alive) or time.monotonic() >= deadline:
+                return len(ready)
+            wait([h.outbox for h in alive], timeout=max(0.0, deadline - time.monotonic()))
+
+    def shutdown(self) -> None:
+        for helper in self.helpers:
+            helper.close()
+        for helper in self.helpers:
+            helper.close(wait_s=2.0)
+        self.helpers = []
+
+    # ---------------------------------------------------------------- batches
+    def run(
+        self,
+        solve: Callable[[Task], Any],
+        tasks: Sequence[Task],
+        wire: Sequence[Task],
+        helpers: Sequence[_Helper],
+        digest: bytes,
+    ) -> list[Any]:
+        """Solve ``tasks`` here and in ``helpers``; per task a result or the exception raised.
+
+        ``wire`` holds the same tasks as sent to the helpers (equal values, cheaper to pickle).
+        """
+        results: list[Any] = [None] * len(tasks)
+        for lo in range(0, len(tasks), CAPACITY):
+            chunk = list(tasks[lo : lo + CAPACITY])
+            results[lo : lo + len(chunk)] = self._round(
+                solve, chunk, list(wire[lo : lo + CAPACITY]), helpers, digest
+            )
+        return results
+
+    def _round(
+        self, solve: Callable[[Task], Any], tasks: list[Task], wire: list[Task],
+        helpers: Sequence[_Helper], digest: bytes,
+    ) -> list[Any]:
+        n = len(tasks)
+        shared = self.shared
+        self.batch_id += 1
+        bid = self.batch_id
+        shared[_HEADER : _HEADER + n] = bytes(n)
+        struct.pack_into("<q", shared, 0, bid)
+        parties = [h for h in helpers if h.alive]
+        sent = []
+        for k, helper in enumerate(parties, start=1):
+            if helper.send(("batch", bid, digest, wire, (k * n) // (len(parties) + 1))):
+                helper.outstanding += 1
+                sent.append(helper)
+        results: list[Any] = [None] * n
+        done = [False] * n
+        try:
+            for k in range(n):
+                if shared[_HEADER + k]:
+                    continue
+                shared[_HEADER + k] = _MAIN_ID
+                results[k], done[k] = _attempt(solve, tasks[k]), True
+            owners = {shared[_HEADER + k] for k in range(n) if not done[k]}
+            for helper in sent:
+                if helper.ident not in owners:
+                    continue  # it answers later; the answer is dropped
+                reply = self._await(helper, bid)
+                for k, value in reply:
+                    if not done[k]:
+                        results[k], done[k] = value, True
+                        self.solved_by_helpers += 1
+        finally:
+            struct.pack_into("<q", shared, 0, 0)  # late helpers stop claiming
+        for k in range(n):  # claimed by a helper that has gone
+            if not done[k]:
+                results[k], done[k] = _attempt(solve, tasks[k]), True
+        return results
+
+    def _await(self, helper: _Helper, bid: int) -> list[tuple[int, Any]]:
+        while helper.alive:
+            if not wait([helper.outbox], timeout=1.0):
+                if helper.process.poll() is not None:
+                    helper.close()
+                continue
+            message = helper.receive()
+            if message is None:
+                break
+            self._handle(helper, message)
+            if message[0] == "done" and message[1] == bid:
+                return list(message[2])
+        return []
+
+
+def _attempt(solve: Callable[[Task], Any], task: Task) -> Any:
+    try:
+        return solve(task)
+    except Exception as error:  # re-raised by the caller in problem order
+        return _Failure(error)
+
+
+class _Failure:
+    """An exception raised while solving one problem (kept apart from results)."""
+
+    def __init__(self, error: Exception) -> None:
+        self.error = error
+
+
+def is_failure(value: object) -> bool:
+    return isinstance(value, _Failure)
+
+
+def failure_error(value: object) -> Exception:
+    assert isinstance(value, _Failure)
+    return value.error
+
+
+_POOL: HelperPool | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def get_pool() -> HelperPool:
+    """This process' helper pool (created on first use)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is not None and _POOL.pid != os.getpid():
+            for helper in _POOL.helpers:  # inherited through fork: not ours
+                helper.abandon()
+            _POOL = None
+        if _POOL is None:
+            _POOL = HelperPool()
+        return _POOL
+
+
+def shutdown_pool() -> None:
+    """Stop this process' helper processes (a later batch starts new ones)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is not None and _POOL.pid == os.getpid():
+            _POOL.shutdown()
+        _POOL = None
+
+
+atexit.register(shutdown_pool)
+
+
+# -------------------------------------------------------------------- helper side
+def helper_main() -> None:
+    """Entry point of a helper process (``python -c``; arguments: fds and id)."""
+    read_fd, write_fd, shared_fd, ident = (int(a) for a in sys.argv[1:5])
+    inbox = Connection(read_fd, writable=False)
+    outbox = Connection(write_fd, readable=False)
+    shared = mmap.mmap(shared_fd, _SIZE)
+    planners: dict[bytes, Any] = {}
+    while True:
+        try:
+            message = inbox.recv()
+        except (EOFError, OSError):
+            return
+        if message[0] == "register":
+            _, digest, blob = message
+            try:
+                planner = object.__new__(_planner_class())
+                planner.__dict__.update(pickle.loads(blob))
+                planner._previous = None
+                planners[digest] = planner.warmup()
+                outbox.send(("registered", digest, None))
+            except Exception as error:
+                outbox.send(("registered", digest, repr(error)))
+        elif message[0] == "batch":
+            _, bid, digest, tasks, offset = message
+            planner = planners[digest]
+            solved: list[tuple[int, Any]] = []
+            n = len(tasks)
+            for step in range(n):
+                k = (offset + step) % n
+                if struct.unpack_from("<q", shared, 0)[0] != bid:
+                    break
+                if shared[_HEADER + k]:
+                    continue
+                shared[_HEADER + k] = ident
+                value = _attempt(planner.plan_task, tasks[k])
+                if isinstance(value, _Failure):
+                    try:
+                        pickle.dumps(value.error)
+                    except Exception:
+                        value = _Failure(RuntimeError(repr(value.error)))
+                solved.append((k, value))
+            outbox.send(("done", bid, solved))
+
+
+def _planner_class() -> type:
+    from solvers.planner.planner import SafeTrajectoryPlanner
+
+    return SafeTrajectoryPlanner
