@@ -145,18 +145,26 @@ def test_plan_batch_workers_argument_and_pickling(planners) -> None:
         np.testing.assert_allclose(a.waypoints, b.waypoints, atol=1e-9)
 
 
-def test_plan_batch_default_shares_only_batches_worth_it(planners, monkeypatch) -> None:
+def test_plan_batch_default_measures_which_way_is_faster(planners, monkeypatch) -> None:
     planner = planners["ipopt"]
     monkeypatch.setattr(batch_module, "usable_cpus", lambda: 2)  # default: 2 processes
     assert planner.start_batch_workers() == 1
     starts, subgoals, obstacles = _problems()
     pool = batch_module.get_pool()
-    before = pool.solved_by_helpers
-    planner._batch_mean_s = 1e-6  # 12 problems expected to take 12 us: not worth a helper
-    planner.plan_batch(starts, subgoals, obstacles)
-    assert pool.solved_by_helpers == before
-    assert planner._batch_mean_s > 1e-6  # the running mean follows the measured times
-    planner._batch_mean_s = 1.0
+    key = (planner._batch_config()[1], len(starts))
+    pool.timings.pop(key, None)
     _slow_here(monkeypatch)
-    planner.plan_batch(starts, subgoals, obstacles)
+    before = pool.solved_by_helpers
+    planner.plan_batch(starts, subgoals, obstacles)  # first: shared
     assert pool.solved_by_helpers > before
+    shared_sums, alone_sums, batches = pool.timings[key]
+    assert min(shared_sums) > 0 and alone_sums is None and batches == 1
+    before = pool.solved_by_helpers
+    planner.plan_batch(starts, subgoals, obstacles)  # then: here alone
+    assert pool.solved_by_helpers == before and min(pool.timings[key][1]) > 0
+    # afterwards the faster way, and every EXPLORE_EVERY-th batch the other one
+    pool.timings[key] = [[2.0, 1.0], [1.0, 1.0], 2]  # [seconds, work]: here alone is faster
+    ways = [pool.choose_shared(key) for _ in range(2 * batch_module.EXPLORE_EVERY)]
+    assert ways.count(True) == 2 and ways[batch_module.EXPLORE_EVERY - 3]
+    pool.timings[key] = [[1.0, 1.0], [2.0, 1.0], 0]
+    assert pool.choose_shared(key)

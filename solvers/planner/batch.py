@@ -43,10 +43,11 @@ logger = logging.getLogger(__name__)
 
 #: Problems per round of claims (larger batches are shared in several rounds).
 CAPACITY = 4096
-#: With the default worker count, a batch is shared only when its problems are expected to take
-#: at least this long in all (s): below, the round trip to a helper and the wait for its last
-#: problem cost about as much as the helper saves (measured: LM, 4 problems of 0.4 ms).
-MIN_SHARED_WORK_S = 3e-3
+#: With the default worker count, every this many batches of one planner and size run the way
+#: (shared or here alone) currently measured slower, so the choice follows the machine's load.
+EXPLORE_EVERY = 8
+#: Decay per batch of each way's sums of wall time and work (about the last ten batches count).
+TIMING_DECAY = 0.9
 #: Helpers that may die (and be replaced) before the pool stops starting new ones.
 MAX_LOST = 3
 
@@ -173,6 +174,39 @@ class HelperPool:
         self.solved_by_helpers = 0
         self.lost = 0  # helpers that died or could not start
         self.warned = False
+        #: (planner digest, batch size) -> [shared, here alone, batches]; each way as decayed
+        #: sums [wall time (s), work] or None before its first batch.
+        self.timings: dict[tuple[bytes, int], list[Any]] = {}
+
+    # ---------------------------------------------------------------- default: measured choice
+    def choose_shared(self, key: tuple[bytes, int]) -> bool:
+        """Whether the next batch of this planner configuration and size should be shared.
+
+        Both ways are tried first; then the one with the lower wall time per unit of work (see
+        :meth:`record`) is used, except every :data:`EXPLORE_EVERY`-th batch, which runs the
+        other way to follow changes in the machine's load.
+        """
+        timing = self.timings.setdefault(key, [None, None, 0])
+        timing[2] += 1
+        if timing[0] is None:
+            return True
+        if timing[1] is None:
+            return False
+        faster_shared = timing[0][0] * timing[1][1] <= timing[1][0] * timing[0][1]
+        return (not faster_shared) if timing[2] % EXPLORE_EVERY == 0 else faster_shared
+
+    def record(self, key: tuple[bytes, int], shared: bool, seconds: float, work: float) -> None:
+        """Add a batch's wall time and work to its way's decayed sums.
+
+        ``work`` normalises for how hard the batch's problems were (the planner passes the sum
+        of solver iterations plus two per problem, the same whichever way a problem is solved);
+        the ratio of the sums weighs each batch by its work, which keeps one slow problem from
+        swinging the choice.
+        """
+        timing = self.timings.setdefault(key, [None, None, 0])
+        slot = 0 if shared else 1
+        old = timing[slot] or [0.0, 0.0]
+        timing[slot] = [TIMING_DECAY * old[0] + seconds, TIMING_DECAY * old[1] + max(work, 1e-9)]
 
     # ---------------------------------------------------------------- helpers
     def _ensure(self, count: int) -> list[_Helper]:

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from solvers.planner.batch import (
-    MIN_SHARED_WORK_S,
     default_workers,
     failure_error,
     get_pool,
@@ -46,6 +45,9 @@ logger = logging.getLogger(__name__)
 
 #: Tolerance of the certificate (metres): a plan passes when every distance >= required - this.
 CERTIFICATE_TOLERANCE = 1e-9
+#: Work of a problem for the batch timing, in solver iterations: its iterations plus this (the
+#: preparation, initial guesses and certificate cost about two iterations).
+BATCH_WORK_PER_PROBLEM = 2
 #: Budget weight (relative to lambda) used only to rank LM's initial guesses.
 CANDIDATE_BUDGET_FACTOR = 0.01
 
@@ -196,7 +198,6 @@ class SafeTrajectoryPlanner:
         self._scp: dict[int, ScpProgram] = {}
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._batch_cache: tuple[object, bytes, bytes] | None = None
-        self._batch_mean_s: float | None = None
 
     # ------------------------------------------------------------------ public API
     def plan(
@@ -260,7 +261,8 @@ class SafeTrajectoryPlanner:
         0.9-1.0x the loop). The helpers start on the first call that wants them and build each
         planner configuration once; until they are ready the batch runs here alone, so call
         :meth:`start_batch_workers` to start them ahead. The gain needs an idle core: when every
-        core is busy with other jobs, sharing gains little or nothing (see solvers/README.md). A
+        core is busy with other jobs sharing can be slower than the loop (solvers/README.md),
+        hence the measured default below. A
         lockstep LM variant (one mapped CasADi call and one block-diagonal banded solve per
         iteration for all problems) was measured no faster than the loop and was dropped.
 
@@ -269,11 +271,11 @@ class SafeTrajectoryPlanner:
             subgoals: (B, 2) subgoals.
             obstacles_list: B obstacle arrays ((m, 2) or (m, 3); None or empty for none).
             workers: Processes solving, this one included. None (default): up to
-                ``min(2, usable CPUs)``, but a batch whose problems are expected to take less
-                than :data:`~solvers.planner.batch.MIN_SHARED_WORK_S` (3 ms) in all (from the
-                running mean of ``solve_time_s`` over earlier batches) is solved here alone, as
-                the round trip to a helper would cost about what it saves. An explicit
-                ``workers > 1`` always shares; 1 solves the problems one after the other here.
+                ``min(2, usable CPUs)``, sharing or not by measurement, per planner
+                configuration and batch size: both ways are tried, then the one with the lower
+                running mean of wall time per unit of work (solver iterations) is used, and
+                every 8th batch tries the other again. An explicit ``workers > 1`` always
+                shares; 1 solves the problems one after the other here.
 
         Returns:
             One certified :class:`PlanResult` per problem, in order.
@@ -301,9 +303,11 @@ class SafeTrajectoryPlanner:
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
         tasks = list(zip(starts_arr, subgoals_arr, obstacles_list, strict=True))
         share = count > 1 and len(tasks) > 1
-        expected = self._batch_mean_s
-        if share and workers is None and expected is not None:
-            share = len(tasks) * expected >= MIN_SHARED_WORK_S
+        key = None
+        if share and workers is None:  # measured choice (see HelperPool.choose_shared)
+            key = (self._batch_config()[1], len(tasks))
+            share = get_pool().choose_shared(key)
+        tic = time.perf_counter()
         shared = self._plan_shared(tasks, int(count)) if share else None
         if shared is None:
             results = [self.plan_task(task) for task in tasks]
@@ -315,9 +319,9 @@ class SafeTrajectoryPlanner:
             self._previous = (start.copy(), start + (subgoal - start),
                               shared[-1].waypoints.copy())
             results = shared
-        if results:
-            mean = float(np.mean([r.solve_time_s for r in results]))
-            self._batch_mean_s = mean if expected is None else 0.75 * expected + 0.25 * mean
+        if key is not None:
+            work = sum(r.iterations + BATCH_WORK_PER_PROBLEM for r in results)
+            get_pool().record(key, shared is not None, time.perf_counter() - tic, work)
         return results
 
     def plan_task(self, task: tuple[object, object, object]) -> PlanResult:
@@ -392,7 +396,6 @@ class SafeTrajectoryPlanner:
         state["_ipopt"] = {}
         state["_scp"] = {}
         state["_batch_cache"] = None  # digest of the configuration sent to batch helpers
-        state["_batch_mean_s"] = None  # running mean of solve_time_s over batches
         return state
 
     def warmup(self) -> SafeTrajectoryPlanner:
