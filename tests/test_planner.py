@@ -150,6 +150,49 @@ def test_planner_falls_back_to_stationary_when_backend_plan_is_unsafe(monkeypatc
     np.testing.assert_array_equal(result.velocities, np.zeros((30, 2)))
 
 
+# Recorded from a CarPush1 evaluation episode: the robot root 0.44 m from one hazard and 0.51 m
+# from another whose centres are 0.88 m apart, so every point between them is inside a clearance.
+# LM (fixed or adaptive lambda) cannot find an escape plan its certificate accepts; IPOPT can.
+CAR_ESCAPE = (
+    [-0.04953882, -0.32584997],
+    [-1.76023832, -2.06276834],
+    [[-0.2285962, 0.14792139], [-0.2312672, -0.72840131], [0.68019654, -1.10284113]],
+)
+
+
+@pytest.mark.parametrize("lm_adaptive", [False, True])
+def test_ipopt_rescues_an_lm_escape_plan_that_fails_the_certificate(lm_adaptive) -> None:
+    start, subgoal, obstacles = CAR_ESCAPE
+    plain = SafeTrajectoryPlanner(backend="lm", lm_adaptive=lm_adaptive).plan(
+        start, subgoal, obstacles)
+    assert plain.fallback and plain.escape_mode and not plain.rescued
+    result = SafeTrajectoryPlanner(
+        backend="lm", lm_adaptive=lm_adaptive, rescue_backend="ipopt"
+    ).plan(start, subgoal, obstacles)
+    assert result.rescued and not result.fallback and result.escape_mode
+    assert result.backend == "lm" and result.status.startswith("rescued by ipopt")
+    centres = np.array(obstacles)
+    start_distances = np.linalg.norm(centres - start, axis=1)
+    violated = start_distances < EPS
+    distances = point_distances(result.waypoints, centres)
+    assert np.all(distances[:, violated] >= start_distances[violated] - 1e-6)
+    assert np.all(distances[:, ~violated] >= EPS - 1e-6)
+    # it leaves: the end is outside every clearance (the start was 0.06 m inside one)
+    assert np.min(np.linalg.norm(centres - result.waypoints[-1], axis=1)) > EPS - 1e-3
+
+
+def test_rescue_is_not_used_when_the_backend_plan_passes(monkeypatch) -> None:
+    planner = SafeTrajectoryPlanner(backend="lm", rescue_backend="ipopt")
+
+    def forbidden(prep, warm):
+        raise AssertionError("IPOPT must not run when LM's plan passes the certificate")
+
+    monkeypatch.setattr(planner, "_solve_ipopt", forbidden)
+    result = planner.plan([0.0, 0.0], [2.0, 0.0], [[1.0, 0.3]])
+    assert not result.rescued and not result.fallback and result.feasible
+    assert SafeTrajectoryPlanner(backend="ipopt", rescue_backend="ipopt").rescue_backend is None
+
+
 def test_planner_falls_back_when_backend_raises(monkeypatch) -> None:
     planner = SafeTrajectoryPlanner(backend="scp")
 
@@ -221,6 +264,7 @@ def test_planner_rejects_bad_input(planners, kwargs, match) -> None:
         ({"n_waypoints": 2}, "n_waypoints must be"),
         ({"lm_lambda": 2048.0}, "lm_lambda"),
         ({"dt": float("nan")}, "dt must be"),
+        ({"rescue_backend": "scp"}, "rescue_backend must be"),
     ],
 )
 def test_planner_constructor_rejects_bad_settings(kwargs, match) -> None:

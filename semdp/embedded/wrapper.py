@@ -67,9 +67,10 @@ class SafetyEmbeddedEnv(gym.Wrapper):
     set. Dropping those transitions would drop most of the reward signal at the laptop budget.
 
     ``info`` carries the plan and its certificate: ``plan`` (the planner's result),
-    ``plan_feasible``, ``plan_fallback``, ``plan_escape``, ``plan_min_clearance``, ``subgoal``,
-    ``n_obstacles``, the step's timings ``perception_s``, ``plan_s``, ``follow_s``, ``sim_s``
-    and ``low_level_steps``. The lifetime sums of the timings are in :attr:`timing`.
+    ``plan_feasible``, ``plan_fallback``, ``plan_escape``, ``plan_rescued``,
+    ``plan_min_clearance``, ``subgoal``, ``n_obstacles``, the step's timings ``perception_s``,
+    ``plan_s``, ``follow_s``, ``sim_s`` and ``low_level_steps``. The lifetime sums of the
+    timings are in :attr:`timing`.
 
     Args:
         env: a ``sims`` Safety Gym env (any wrappers; the unwrapped env provides the pose,
@@ -237,6 +238,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             plan_feasible=bool(getattr(plan, "feasible", True)),
             plan_fallback=bool(getattr(plan, "fallback", False)),
             plan_escape=bool(getattr(plan, "escape_mode", False)),
+            plan_rescued=bool(getattr(plan, "rescued", False)),
             plan_min_clearance=float(getattr(plan, "min_clearance", np.inf)),
             low_level_steps=steps,
             **step_timing,

@@ -59,6 +59,7 @@ class _BackendPlan:
     iterations: int
     multiplier: float = float("nan")
     failed: bool = False
+    rescued: bool = False
 
 
 class SafeTrajectoryPlanner:
@@ -96,6 +97,11 @@ class SafeTrajectoryPlanner:
         ipopt_options: IPOPT options merged over :data:`IPOPT_OPTIONS`.
         scp_max_iterations: QP solves at most.
         scp_trust_region: Half-width of the SCP trust-region box.
+        rescue_backend: ``None`` (default) or ``"ipopt"``: when the LM or SCP plan fails the
+            certificate, solve the same problem with IPOPT (cold, hard constraints) before
+            falling back to the stationary plan. Costs IPOPT's time only on those rare problems
+            (LM's escape-mode starts between two close obstacles are the usual case; see
+            solvers/README.md "Rescue"). Ignored with ``backend="ipopt"``.
     """
 
     def __init__(
@@ -123,9 +129,12 @@ class SafeTrajectoryPlanner:
         ipopt_options: dict[str, object] | None = None,
         scp_max_iterations: int = 30,
         scp_trust_region: float = 1.0,
+        rescue_backend: str | None = None,
     ) -> None:
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+        if rescue_backend not in (None, "ipopt"):
+            raise ValueError(f"rescue_backend must be None or 'ipopt', got {rescue_backend!r}")
         positive = {
             "dt": dt,
             "sigma_smooth": sigma_smooth,
@@ -183,6 +192,8 @@ class SafeTrajectoryPlanner:
         self.ipopt_options = dict(IPOPT_OPTIONS, **(ipopt_options or {}))
         self.scp_max_iterations = int(scp_max_iterations)
         self.scp_trust_region = float(scp_trust_region)
+        #: None with backend="ipopt" (nothing to rescue with)
+        self.rescue_backend = rescue_backend if backend != "ipopt" else None
         self.prior = build_gp_prior(self.n_waypoints, self.dt)
         self.reach_radii = self.prior.reach_radii(self.sigma_smooth)
         #: Farthest any waypoint of an admissible plan can get from the start (m).
@@ -236,6 +247,8 @@ class SafeTrajectoryPlanner:
         except Exception as error:  # a solver crash must not end a training run: fall back
             logger.warning("planner backend %s failed: %r", self.backend, error)
             plan = _BackendPlan(np.zeros(self.prior.n_var), f"error: {error}", 0, failed=True)
+        if self.rescue_backend is not None and (plan.failed or not self._passes(prep, plan.z)):
+            plan = self._rescue(prep, plan)
         result = self._certify(prep, plan, tic)
         self._previous = (prep.start.copy(), prep.start + prep.goal, result.waypoints.copy())
         return result
@@ -589,6 +602,21 @@ class SafeTrajectoryPlanner:
         iterations += max(second.iterations, 0)
         return _BackendPlan(second.z, _ipopt_status(second.status), iterations)
 
+    def _rescue(self, prep: PreparedProblem, failed: _BackendPlan) -> _BackendPlan:
+        """IPOPT's plan for a problem whose LM / SCP plan failed the certificate, or the
+        failed plan when IPOPT fails too (then :meth:`_certify` falls back)."""
+        try:
+            rescue = self._solve_ipopt(prep, None)
+        except Exception as error:  # as in plan: a solver crash must not end a run
+            logger.warning("planner rescue by ipopt failed: %r", error)
+            return failed
+        iterations = failed.iterations + rescue.iterations
+        if not self._passes(prep, rescue.z):
+            return _BackendPlan(failed.z, f"{failed.status}; ipopt rescue: {rescue.status}",
+                                iterations, failed.multiplier, failed.failed)
+        return _BackendPlan(rescue.z, f"rescued by ipopt ({failed.status}): {rescue.status}",
+                            iterations, rescued=True)
+
     # ------------------------------------------------------------------ SCP
     def _scp_program(self, n_slots: int) -> ScpProgram:
         if n_slots not in self._scp:
@@ -714,6 +742,7 @@ class SafeTrajectoryPlanner:
             reached_subgoal=bool(np.sqrt(objective) < self.goal_tolerance),
             multiplier=float(plan.multiplier),
             n_considered=len(prep.selected),
+            rescued=plan.rescued and not fallback,
         )
 
 

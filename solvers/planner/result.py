@@ -34,6 +34,8 @@ class PlanResult:
         multiplier: The LM penalty multiplier lambda of the returned plan (``nan`` for others).
         n_considered: Number of obstacles given to the backend (after dropping unreachable ones
             and keeping at most ``max_obstacles``); the certificate checks all of them.
+        rescued: The backend's own plan failed the certificate and IPOPT's (``rescue_backend``)
+            passed it; ``backend`` still names the primary backend.
     """
 
     waypoints: np.ndarray
@@ -51,12 +53,13 @@ class PlanResult:
     reached_subgoal: bool
     multiplier: float = float("nan")
     n_considered: int = 0
+    rescued: bool = False
 
     def summary(self) -> str:
         """A few human-readable lines (used by the CLI)."""
         lines = [
             f"backend={self.backend} status={self.status} feasible={self.feasible} "
-            f"fallback={self.fallback} escape_mode={self.escape_mode}",
+            f"fallback={self.fallback} escape_mode={self.escape_mode} rescued={self.rescued}",
             f"objective={self.objective:.6g} reached_subgoal={self.reached_subgoal} "
             f"final_waypoint={np.round(self.waypoints[-1], 4).tolist()}",
             f"min_clearance waypoints={self.min_clearance:.6f} m "
