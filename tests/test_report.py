@@ -167,6 +167,12 @@ def test_smooth_adapts_window_and_preserves_quadratics() -> None:
     np.testing.assert_array_equal(smooth(short), short)  # too short for polyorder 2: unchanged
     noisy = np.tile([0.0, 1.0], 20)
     assert smooth(noisy).std() < noisy.std() / 3
+    # 15 epochs: window 5, not one parabola through the whole run; never outside the data range
+    spike = np.zeros(15)
+    spike[7] = 10.0
+    smoothed = smooth(spike)
+    assert smoothed.min() >= 0.0 and smoothed.max() <= 10.0
+    np.testing.assert_array_equal(smoothed[:3], 0.0)  # outside the window of the spike
 
 
 def test_aggregate_curves_mean_and_standard_error_oracle() -> None:

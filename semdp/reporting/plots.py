@@ -23,16 +23,19 @@ def smooth(
 ) -> FloatArray:
     """Savitzky-Golay smoothing with a window adapted to short series.
 
-    The window is the largest odd number ``<= min(window, len(values))``; series shorter than
-    ``polyorder + 2`` points are returned unchanged.
+    The window is the largest odd number ``<= min(window, max(polyorder + 3, len(values) // 3))``
+    (a window as long as the series would fit one parabola to a whole 15-epoch run); series
+    shorter than ``polyorder + 2`` points are returned unchanged. The result is clipped to the
+    range of ``values``, so a cost curve of non-negative values never dips below zero.
     """
     values = np.asarray(values, dtype=np.float64)
-    size = min(window, values.size)
+    size = min(window, values.size, max(polyorder + 3, values.size // 3))
     if size % 2 == 0:
         size -= 1
     if size < polyorder + 2:
-        return values.copy()
-    return savgol_filter(values, size, polyorder, mode="interp")
+        return values
+    smoothed = savgol_filter(values, size, polyorder, mode="interp")
+    return np.clip(smoothed, values.min(), values.max())
 
 
 def _series(run: RunRecord, column: str) -> tuple[FloatArray, FloatArray] | None:
