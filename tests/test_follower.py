@@ -4,6 +4,7 @@ committed Point weights and the Mass P-controller."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -126,3 +127,23 @@ def test_committed_car_follower_reaches_goals() -> None:
 def test_mass_p_controller_reaches_goals() -> None:
     stats = evaluate_reaching(ProportionalFollower(), "sims/SafetyMassGoal0-v0", trials=10)
     assert stats.success_rate == 1.0
+
+
+@pytest.mark.parametrize(
+    "name", sorted(p.stem for p in (Path(__file__).parents[1] / "conf" / "follower").glob("*.yaml"))
+)
+def test_every_follower_config_builds_and_acts_in_its_robots_push_env(name: str) -> None:
+    """Each conf/follower entry (committed weights included) loads, binds to the observation of
+    its robot's Push1 env and returns a finite action of the env's action shape."""
+    robot = name.split("_")[0]
+    env = gym.make(f"sims/Safety{robot.capitalize()}Push1-v0")
+    obs, _ = env.reset(seed=0)
+    base = env.unwrapped
+    follower = build_follower(name, robot)
+    if isinstance(follower, PolicyFollower):
+        follower.bind(base.obs_slices)
+    target = np.asarray(base.robot_position) + np.array([0.3, 0.0])
+    action = follower.act(obs, base.robot_position, base.robot_heading, target)
+    assert action.shape == env.action_space.shape
+    assert np.all(np.isfinite(action))
+    env.step(action)  # in range (the env raises on NaN and clips, so stepping must succeed)
