@@ -27,6 +27,7 @@ from typing import Any
 import hydra
 import numpy as np
 from hydra.core.hydra_config import HydraConfig
+from hydra.errors import InstantiationException
 from hydra.utils import instantiate
 from matplotlib.figure import Figure
 from omegaconf import DictConfig, OmegaConf
@@ -191,7 +192,12 @@ def run(cfg: DictConfig, output_dir: Path) -> dict[str, Any]:
         ValueError: on an invalid start or solver setting (names the parameter).
     """
     start = time.perf_counter()
-    solver: SelfPacedLagrangianToy = instantiate(cfg.solver)
+    try:
+        solver: SelfPacedLagrangianToy = instantiate(cfg.solver)
+    except InstantiationException as error:  # the constructor's ValueError, without Hydra's frame
+        if isinstance(error.__cause__, ValueError):
+            raise ValueError(f"solver.{error.__cause__}") from None
+        raise
     x0 = cfg.x0
     results = solver.solve_all(x0)
     other_rule = "literal" if solver.threshold_rule == "tighten" else "tighten"

@@ -91,6 +91,24 @@ def test_toy_cli_reports_bad_start_in_one_line(tmp_path: Path) -> None:
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("solver.num_thresholds=-1",
+         "semdp-toy: solver.num_thresholds must be an integer >= 0, got -1"),
+        ("solver.lr_x=0", "semdp-toy: solver.lr_x must be > 0, got 0"),
+    ],
+)
+def test_toy_cli_reports_bad_solver_setting_in_one_line(tmp_path: Path, override, message) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "semdp.toy", override, f"hydra.run.dir={tmp_path}"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode != 0
+    assert done.stderr.strip() == message
+    assert not (tmp_path / SUMMARY_NAME).exists()
+
+
 def test_toy_experiment_preset_sweeps_20_starts_over_three_intervals() -> None:
     cfg = _compose(["experiment=toy", "budget=ci"], return_hydra_config=True)
     starts = [float(v) for v in str(cfg.hydra.sweeper.params.x0).split(",")]
