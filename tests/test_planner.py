@@ -182,7 +182,8 @@ def test_ipopt_rescues_an_lm_escape_plan_that_fails_the_certificate(lm_adaptive)
 
 
 def test_rescue_is_not_used_when_the_backend_plan_passes(monkeypatch) -> None:
-    planner = SafeTrajectoryPlanner(backend="lm", rescue_backend="ipopt")
+    planner = SafeTrajectoryPlanner(backend="lm", rescue_backend="ipopt").warmup()
+    assert {kind for _, kind in planner._ipopt} == {"cold"}  # warmup builds the rescue's programs
 
     def forbidden(prep, warm):
         raise AssertionError("IPOPT must not run when LM's plan passes the certificate")

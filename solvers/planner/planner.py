@@ -412,16 +412,18 @@ class SafeTrajectoryPlanner:
         return state
 
     def warmup(self) -> SafeTrajectoryPlanner:
-        """Build every compiled solver now (one per obstacle-slot count) instead of on first use."""
+        """Build every compiled solver now (one per obstacle-slot count) instead of on first use,
+        the rescue's IPOPT programs included."""
         counts = sorted({bucket_size(k, self.max_obstacles) for k in range(self.max_obstacles + 1)})
         for count in counts:
             if self.backend == "lm":
                 self._lm_kernel(count)
             elif self.backend == "ipopt":
                 self._ipopt_program(count, "first")
-                self._ipopt_program(count, "cold")
             else:
                 self._scp_program(count)
+            if self.backend == "ipopt" or self.rescue_backend == "ipopt":
+                self._ipopt_program(count, "cold")  # the rescue's (cold) program
         return self
 
     # ------------------------------------------------------------------ preparation
