@@ -33,7 +33,7 @@ def smooth(
     if size % 2 == 0:
         size -= 1
     if size < polyorder + 2:
-        return values
+        return values.copy()  # never hand back the caller's array
     smoothed = savgol_filter(values, size, polyorder, mode="interp")
     return np.clip(smoothed, values.min(), values.max())
 
