@@ -1,5 +1,5 @@
-"""Safe trajectory planner (SPEC §2.2, issue 3): planted solutions, the safety property, escape
-mode, fallback, bad inputs, batch, configs."""
+"""Safe trajectory planner (thesis §3.5.2): planted solutions, the safety property, escape mode,
+fallback, bad inputs, settings, batch, configs."""
 
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from solvers.planner import SafeTrajectoryPlanner, random_problems
+from solvers.planner import PlannerSettings, SafeTrajectoryPlanner, plan_batch, random_problems
 from solvers.planner.geometry import point_distances, segment_distances
 from solvers.planner.problem import build_gp_prior
+from solvers.planner.settings import setting_names
 
 BACKENDS = ["ipopt", "lm", "scp"]
 EPS = 0.5
@@ -134,15 +135,14 @@ def test_planner_escape_mode_leaves_without_getting_closer(
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_planner_falls_back_to_stationary_when_backend_plan_is_unsafe(monkeypatch, backend):
     planner = SafeTrajectoryPlanner(backend=backend)
-    method = f"_solve_{backend}"
-    original = getattr(planner, method)
+    original = planner.solver.solve
 
     def unsafe(prep, warm):
         plan = original(prep, warm)
         plan.z[: 2 * (planner.n_waypoints - 1)] = np.tile(prep.centres[0], planner.n_waypoints - 1)
         return plan
 
-    monkeypatch.setattr(planner, method, unsafe)
+    monkeypatch.setattr(planner.solver, "solve", unsafe)
     result = planner.plan([0.0, 0.0], [2.0, 0.0], [[1.0, 0.0]])
     assert result.fallback and result.status.startswith("fallback")
     assert result.feasible
@@ -183,12 +183,13 @@ def test_ipopt_rescues_an_lm_escape_plan_that_fails_the_certificate(lm_adaptive)
 
 def test_rescue_is_not_used_when_the_backend_plan_passes(monkeypatch) -> None:
     planner = SafeTrajectoryPlanner(backend="lm", rescue_backend="ipopt").warmup()
-    assert {kind for _, kind in planner._ipopt} == {"cold"}  # warmup builds the rescue's programs
+    # warmup builds the rescue's (cold) programs
+    assert {kind for _, kind in planner.rescue_solver.programs} == {"cold"}
 
     def forbidden(prep, warm):
         raise AssertionError("IPOPT must not run when LM's plan passes the certificate")
 
-    monkeypatch.setattr(planner, "_solve_ipopt", forbidden)
+    monkeypatch.setattr(planner.rescue_solver, "solve", forbidden)
     result = planner.plan([0.0, 0.0], [2.0, 0.0], [[1.0, 0.3]])
     assert not result.rescued and not result.fallback and result.feasible
     assert SafeTrajectoryPlanner(backend="ipopt", rescue_backend="ipopt").rescue_backend is None
@@ -200,7 +201,7 @@ def test_planner_falls_back_when_backend_raises(monkeypatch) -> None:
     def broken(prep, warm):
         raise RuntimeError("solver crashed")
 
-    monkeypatch.setattr(planner, "_solve_scp", broken)
+    monkeypatch.setattr(planner.solver, "solve", broken)
     result = planner.plan([1.0, 1.0], [2.0, 0.0], [[1.0, 0.0]])
     assert result.fallback and "solver crashed" in result.status
     np.testing.assert_array_equal(result.waypoints, np.tile([1.0, 1.0], (30, 1)))
@@ -299,7 +300,7 @@ def test_planner_batch_matches_loop(planners, backend) -> None:
     subgoals = [p.subgoal for p in problems]
     obstacles = [p.obstacles for p in problems]
     # workers=1: one after the other here (helper processes: tests/test_planner_batch.py)
-    batch = planner.plan_batch(starts, subgoals, obstacles, workers=1)
+    batch = plan_batch(planner, starts, subgoals, obstacles, workers=1)
     loop = [
         planner.plan(s, g, o, warm_start=False)
         for s, g, o in zip(starts, subgoals, obstacles, strict=True)
@@ -311,7 +312,7 @@ def test_planner_batch_matches_loop(planners, backend) -> None:
 
 def test_planner_batch_rejects_mismatched_shapes(planners) -> None:
     with pytest.raises(ValueError, match="one entry per start"):
-        planners[("lm", False)].plan_batch([[0, 0], [1, 1]], [[1, 1], [2, 2]], [[]])
+        plan_batch(planners[("lm", False)], [[0, 0], [1, 1]], [[1, 1], [2, 2]], [[]])
 
 
 def test_planner_warm_start_reuses_previous_plan(planners) -> None:
@@ -352,14 +353,99 @@ def test_gp_prior_reach_matches_continuous_minimum_energy() -> None:
     )
 
 
+def _compose_planner(name: str):
+    """``conf/planner/<name>.yaml`` composed by Hydra (the files use defaults lists)."""
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(config_dir=str(CONF_PLANNER.parent), version_base="1.3"):
+        return compose(config_name=f"planner/{name}").planner
+
+
 @pytest.mark.parametrize("name", ["ipopt", "lm", "lm_adaptive", "scp"])
 def test_planner_configs_instantiate(name: str) -> None:
     from hydra.utils import instantiate
-    from omegaconf import OmegaConf
 
-    cfg = OmegaConf.load(CONF_PLANNER / f"{name}.yaml")
-    planner = instantiate(cfg)
+    planner = instantiate(_compose_planner(name))
     assert isinstance(planner, SafeTrajectoryPlanner)
     assert planner.backend == name.split("_")[0]
     assert planner.lm_adaptive == (name == "lm_adaptive")
     assert planner.plan([0, 0], [1, 0], [[0.5, 0.6]]).feasible
+
+
+def test_constructor_keywords_are_exactly_the_settings() -> None:
+    import dataclasses
+    import inspect
+
+    parameters = inspect.signature(SafeTrajectoryPlanner.__init__).parameters
+    constructor = {name: p.default for name, p in parameters.items() if name != "self"}
+    settings = {f.name: f.default for f in dataclasses.fields(PlannerSettings)}
+    assert list(constructor) == list(settings) == list(setting_names())
+    assert constructor == settings
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in CONF_PLANNER.glob("*.yaml")))
+def test_every_conf_planner_key_is_a_constructor_argument(name: str) -> None:
+    import inspect
+
+    from hydra.utils import get_class
+
+    node = _compose_planner(name)
+    parameters = inspect.signature(get_class(node._target_).__init__).parameters
+    keys = set(node) - {"_target_"}
+    assert keys <= set(parameters) - {"self"}, sorted(keys - set(parameters))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"continuous": "yes"}, "continuous must be a boolean"),
+        ({"lm_adaptive": 2}, "lm_adaptive must be a boolean"),
+        ({"n_waypoints": 3.5}, "n_waypoints must be an integer >= 3"),
+        ({"lm_iterations": "10"}, "lm_iterations must be an integer"),
+        ({"clearance": "0.5"}, "clearance must be a finite number >= 0"),
+        ({"goal_tolerance": True}, "goal_tolerance must be a finite number > 0"),
+        ({"ipopt_options": ["tol", 1e-6]}, "ipopt_options must be a mapping"),
+        ({"max_obstacles": None}, "max_obstacles must be an integer"),
+    ],
+)
+def test_settings_reject_wrong_types(kwargs, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        PlannerSettings(**kwargs)
+    with pytest.raises(ValueError, match=match):
+        SafeTrajectoryPlanner(**kwargs)
+
+
+def test_settings_are_frozen_normalised_and_rebuild_the_planner() -> None:
+    import dataclasses
+
+    settings = PlannerSettings(backend="lm", n_waypoints=np.int64(20), continuous=np.bool_(True),
+                               ipopt_options={"tol": 1e-6})
+    assert type(settings.n_waypoints) is int and settings.continuous is True
+    assert PlannerSettings(**settings.to_kwargs()) == settings
+    assert hash(settings) == hash(PlannerSettings(**settings.to_kwargs()))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        settings.clearance = 0.6  # type: ignore[misc]
+    planner = SafeTrajectoryPlanner.from_settings(settings)
+    assert planner.settings is settings and planner.n_waypoints == 20 and planner.continuous
+    assert planner.solver.context.prior.n_waypoints == 20
+    assert PlannerSettings(rescue_backend="ipopt").rescue_backend is None  # nothing to rescue
+    with pytest.raises(AttributeError, match="read-only"):
+        planner.clearance = 0.6
+    same = SafeTrajectoryPlanner(**settings.to_kwargs())
+    a = planner.plan([0, 0], [1.5, 0.5], [[0.8, 0.2]])
+    b = same.plan([0, 0], [1.5, 0.5], [[0.8, 0.2]])
+    np.testing.assert_array_equal(a.waypoints, b.waypoints)
+
+
+def test_pickled_planner_drops_compiled_solvers_and_keeps_its_memory() -> None:
+    import pickle
+
+    planner = SafeTrajectoryPlanner(backend="lm", rescue_backend="ipopt")
+    planner.rescue_solver.warmup([0], attempts=("cold",))
+    planner.plan([0, 0], [2, 0], [[1, 0.1]])
+    assert planner.solver.kernels and planner.rescue_solver.programs
+    clone = pickle.loads(pickle.dumps(planner))
+    assert clone.solver.kernels == {} and clone.rescue_solver.programs == {}
+    assert clone.settings == planner.settings
+    for got, want in zip(clone.memory.previous, planner.memory.previous, strict=True):
+        np.testing.assert_array_equal(got, want)

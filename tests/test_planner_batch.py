@@ -1,4 +1,4 @@
-"""``SafeTrajectoryPlanner.plan_batch`` with helper processes (solvers/planner/batch.py): the
+"""``plan_batch`` with helper processes (solvers/planner/batching.py, batch.py): the
 plans equal a loop of ``plan`` calls for every backend, including empty, over-full and escape-mode
 problems; bad inputs, a dead helper and pickling."""
 
@@ -10,8 +10,14 @@ import time
 import numpy as np
 import pytest
 
-from solvers.planner import SafeTrajectoryPlanner, random_problems
+from solvers.planner import (
+    SafeTrajectoryPlanner,
+    plan_batch,
+    random_problems,
+    start_batch_workers,
+)
 from solvers.planner import batch as batch_module
+from solvers.planner.batching import batch_config
 
 VARIANTS = {
     "ipopt": {"backend": "ipopt"},
@@ -55,29 +61,29 @@ def _problems() -> tuple[list, list, list]:
 
 def _slow_here(monkeypatch, delay: float = 0.02) -> None:
     """Make this process slow so the helper certainly claims problems of the batch."""
-    solve = SafeTrajectoryPlanner.plan_task
+    solve = SafeTrajectoryPlanner.plan
 
-    def slow(self, task):
+    def slow(self, *args, **kwargs):
         time.sleep(delay)
-        return solve(self, task)
+        return solve(self, *args, **kwargs)
 
-    monkeypatch.setattr(SafeTrajectoryPlanner, "plan_task", slow)
+    monkeypatch.setattr(SafeTrajectoryPlanner, "plan", slow)
 
 
 @pytest.mark.parametrize("variant", list(VARIANTS))
 def test_plan_batch_with_helpers_equals_loop(planners, variant, monkeypatch) -> None:
     planner = planners[variant]
-    assert planner.start_batch_workers(workers=2) == 1
+    assert start_batch_workers(planner, workers=2) == 1
     starts, subgoals, obstacles = _problems()
     loop = [
         planner.plan(s, g, o, warm_start=False)
         for s, g, o in zip(starts, subgoals, obstacles, strict=True)
     ]
-    loop_previous = planner._previous
+    loop_previous = planner.memory.previous
     pool = batch_module.get_pool()
     before = pool.solved_by_helpers
     _slow_here(monkeypatch)
-    batch = planner.plan_batch(starts, subgoals, obstacles, workers=2)
+    batch = plan_batch(planner, starts, subgoals, obstacles, workers=2)
     assert pool.solved_by_helpers > before  # the helper did take part
     assert len(batch) == len(loop)
     assert batch[-3].n_considered == 0 and batch[-2].n_considered == MAX_OBSTACLES
@@ -94,53 +100,53 @@ def test_plan_batch_with_helpers_equals_loop(planners, variant, monkeypatch) -> 
             assert (a.status, a.iterations) == (b.status, b.iterations), k
         if a.feasible and not a.escape_mode:
             assert a.min_clearance >= planner.clearance - 1e-9, k
-    for got, want in zip(planner._previous, loop_previous, strict=True):
+    for got, want in zip(planner.memory.previous, loop_previous, strict=True):
         np.testing.assert_allclose(got, want, atol=atol)
 
 
 def test_plan_batch_reraises_the_first_bad_problem(planners, monkeypatch) -> None:
     planner = planners["lm"]
-    assert planner.start_batch_workers(workers=2) == 1
+    assert start_batch_workers(planner, workers=2) == 1
     starts, subgoals, obstacles = _problems()
     obstacles[5] = [[1.0, 1.0, -0.2]]
     obstacles[9] = [[1.0, 1.0, float("nan")]]
     _slow_here(monkeypatch)
     with pytest.raises(ValueError, match="radii must be >= 0"):
-        planner.plan_batch(starts, subgoals, obstacles, workers=2)
+        plan_batch(planner, starts, subgoals, obstacles, workers=2)
     # the helpers still work afterwards
     monkeypatch.undo()
     starts, subgoals, obstacles = _problems()
-    batch = planner.plan_batch(starts, subgoals, obstacles, workers=2)
+    batch = plan_batch(planner, starts, subgoals, obstacles, workers=2)
     assert all(r.feasible or r.escape_mode for r in batch)
 
 
 def test_plan_batch_survives_a_dead_helper(planners) -> None:
     planner = planners["lm_adaptive"]
-    assert planner.start_batch_workers(workers=2) == 1
+    assert start_batch_workers(planner, workers=2) == 1
     starts, subgoals, obstacles = _problems()
     loop = [planner.plan(s, g, o, warm_start=False)
             for s, g, o in zip(starts, subgoals, obstacles, strict=True)]
     helper = batch_module.get_pool().helpers[0]
     helper.process.kill()
     helper.process.wait(timeout=10)
-    batch = planner.plan_batch(starts, subgoals, obstacles, workers=2)
+    batch = plan_batch(planner, starts, subgoals, obstacles, workers=2)
     for a, b in zip(batch, loop, strict=True):
         np.testing.assert_allclose(a.waypoints, b.waypoints, atol=1e-9)
-    assert planner.start_batch_workers(workers=2) == 1  # a new helper replaces it
+    assert start_batch_workers(planner, workers=2) == 1  # a new helper replaces it
 
 
 def test_plan_batch_workers_argument_and_pickling(planners) -> None:
     planner = planners["lm"]
     starts, subgoals, obstacles = _problems()
     with pytest.raises(ValueError, match="workers"):
-        planner.plan_batch(starts, subgoals, obstacles, workers=0)
+        plan_batch(planner, starts, subgoals, obstacles, workers=0)
     pool = batch_module.get_pool()
     before = pool.solved_by_helpers
-    alone = planner.plan_batch(starts, subgoals, obstacles, workers=1)
+    alone = plan_batch(planner, starts, subgoals, obstacles, workers=1)
     assert pool.solved_by_helpers == before
     clone = pickle.loads(pickle.dumps(planner))
-    assert clone._lm_kernels == {} and clone._previous is not None
-    again = clone.plan_batch(starts, subgoals, obstacles)
+    assert clone.solver.kernels == {} and clone.memory.previous is not None
+    again = plan_batch(clone, starts, subgoals, obstacles)
     for a, b in zip(alone, again, strict=True):
         np.testing.assert_allclose(a.waypoints, b.waypoints, atol=1e-9)
 
@@ -148,19 +154,19 @@ def test_plan_batch_workers_argument_and_pickling(planners) -> None:
 def test_plan_batch_default_measures_which_way_is_faster(planners, monkeypatch) -> None:
     planner = planners["ipopt"]
     monkeypatch.setattr(batch_module, "usable_cpus", lambda: 2)  # default: 2 processes
-    assert planner.start_batch_workers() == 1
+    assert start_batch_workers(planner) == 1
     starts, subgoals, obstacles = _problems()
     pool = batch_module.get_pool()
-    key = (planner._batch_config()[1], len(starts))
+    key = (batch_config(planner)[1], len(starts))
     pool.timings.pop(key, None)
     _slow_here(monkeypatch)
     before = pool.solved_by_helpers
-    planner.plan_batch(starts, subgoals, obstacles)  # first: shared
+    plan_batch(planner, starts, subgoals, obstacles)  # first: shared
     assert pool.solved_by_helpers > before
     shared_sums, alone_sums, batches = pool.timings[key]
     assert min(shared_sums) > 0 and alone_sums is None and batches == 1
     before = pool.solved_by_helpers
-    planner.plan_batch(starts, subgoals, obstacles)  # then: here alone
+    plan_batch(planner, starts, subgoals, obstacles)  # then: here alone
     assert pool.solved_by_helpers == before and min(pool.timings[key][1]) > 0
     # afterwards the faster way, and every EXPLORE_EVERY-th batch the other one
     pool.timings[key] = [[2.0, 1.0], [1.0, 1.0], 2]  # [seconds, work]: here alone is faster

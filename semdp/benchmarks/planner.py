@@ -1,4 +1,4 @@
-"""``semdp-bench planner``: every planner backend on one seeded problem suite (SPEC §0, §6).
+"""``semdp-bench planner``: every planner backend on one seeded problem suite (solvers/README.md).
 
 Usage::
 
@@ -26,7 +26,12 @@ from pathlib import Path
 import numpy as np
 
 from semdp.paths import REPO_ROOT
-from solvers.planner import SafeTrajectoryPlanner, random_problems
+from solvers.planner import (
+    SafeTrajectoryPlanner,
+    plan_batch,
+    random_problems,
+    start_batch_workers,
+)
 
 THESIS_THESEUS_MS = 63.0
 
@@ -193,7 +198,7 @@ def _run_batches(
     machine load. Fills ``times`` (per problem: call time / chunk size) and ``results`` with the
     batch's and returns the comparison row.
     """
-    helpers = planner.start_batch_workers(workers)
+    helpers = start_batch_workers(planner, workers)
     loop_total = batch_total = max_diff = 0.0
     for index, lo in enumerate(range(0, len(problems), size)):
         chunk = problems[lo : lo + size]
@@ -203,7 +208,7 @@ def _run_batches(
         for batch_first in ((True, False) if index % 2 == 0 else (False, True)):
             tic = time.perf_counter()
             if batch_first:
-                out_chunk = planner.plan_batch(starts, subgoals, obstacles, workers=workers)
+                out_chunk = plan_batch(planner, starts, subgoals, obstacles, workers=workers)
                 elapsed = time.perf_counter() - tic
                 batch_total += elapsed
                 times[lo : lo + len(chunk)] = elapsed / len(chunk)

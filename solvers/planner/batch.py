@@ -1,11 +1,13 @@
-"""Helper processes that share the problems of ``SafeTrajectoryPlanner.plan_batch``.
+"""Helper processes that share the problems of :func:`solvers.planner.batching.plan_batch`.
 
 CasADi (IPOPT and the LM kernels) keeps the GIL while it evaluates, so Python threads cannot run
 two solves at once: a thread pool of planner clones measured 0.9-1.0x the loop for IPOPT and LM.
 The batch entry point therefore shares the problems with helper processes. Each helper is a
 fresh interpreter (``subprocess``, not ``fork``: safe next to torch's threads, and the caller's
-``__main__`` is not imported again) that keeps a copy of every planner configuration it was sent
-and solves with it exactly as :meth:`SafeTrajectoryPlanner.plan` does, certificate included.
+``__main__`` is not imported again). The pool knows no planner class: it is sent a pickled
+*factory* (a callable returning a :class:`BatchSolver`), calls it once per planner
+configuration, and solves with the result exactly as ``plan(start, subgoal, obstacles,
+warm_start=False)`` does, certificate included.
 
 Work sharing: a page of shared memory (a temporary file mapped by every process) holds the batch
 id and one claim byte per problem. Each process walks the problems from its own starting offset
@@ -35,9 +37,10 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
+from functools import partial
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 logger = logging.getLogger(__name__)
 
@@ -59,6 +62,26 @@ _PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
 Task = tuple[Any, Any, Any]
 
 
+class BatchSolver(Protocol):
+    """What a helper builds from a factory: a planner it can warm up and solve with."""
+
+    def warmup(self) -> object:
+        """Build every compiled solver now."""
+        ...
+
+    def plan(self, start: Any, subgoal: Any, obstacles: Any = None,
+             warm_start: bool = True) -> Any:
+        """Plan one problem."""
+        ...
+
+
+def solve_task(solver: BatchSolver, task: Task) -> Any:
+    """``plan(start, subgoal, obstacles, warm_start=False)`` for one (start, subgoal, obstacles)
+    problem of a batch."""
+    start, subgoal, obstacles = task
+    return solver.plan(start, subgoal, obstacles, warm_start=False)
+
+
 def usable_cpus() -> int:
     """CPUs this process may run on (its affinity mask where the OS has one)."""
     try:
@@ -72,9 +95,10 @@ def default_workers() -> int:
     return max(1, min(2, usable_cpus()))
 
 
-def planner_blob(state: dict[str, object]) -> tuple[bytes, bytes]:
-    """The pickled configuration of a planner (its state without caches) and its digest."""
-    blob = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+def factory_blob(factory: Callable[[], BatchSolver]) -> tuple[bytes, bytes]:
+    """The pickled factory of a planner configuration and its digest (the helpers build and
+    keep one planner per digest)."""
+    blob = pickle.dumps(factory, protocol=pickle.HIGHEST_PROTOCOL)
     return blob, hashlib.sha1(blob).digest()
 
 
@@ -411,7 +435,7 @@ def helper_main() -> None:
     inbox = Connection(read_fd, writable=False)
     outbox = Connection(write_fd, readable=False)
     shared = mmap.mmap(shared_fd, _SIZE)
-    planners: dict[bytes, Any] = {}
+    planners: dict[bytes, BatchSolver] = {}
     while True:
         try:
             message = inbox.recv()
@@ -420,10 +444,9 @@ def helper_main() -> None:
         if message[0] == "register":
             _, digest, blob = message
             try:
-                planner = object.__new__(_planner_class())
-                planner.__dict__.update(pickle.loads(blob))
-                planner._previous = None
-                planners[digest] = planner.warmup()
+                planner = pickle.loads(blob)()
+                planner.warmup()
+                planners[digest] = planner
                 outbox.send(("registered", digest, None))
             except Exception as error:
                 outbox.send(("registered", digest, repr(error)))
@@ -439,7 +462,7 @@ def helper_main() -> None:
                 if shared[_HEADER + k]:
                     continue
                 shared[_HEADER + k] = ident
-                value = _attempt(planner.plan_task, tasks[k])
+                value = _attempt(partial(solve_task, planner), tasks[k])
                 if isinstance(value, _Failure):
                     try:
                         pickle.dumps(value.error)
@@ -448,8 +471,3 @@ def helper_main() -> None:
                 solved.append((k, value))
             outbox.send(("done", bid, solved))
 
-
-def _planner_class() -> type:
-    from solvers.planner.planner import SafeTrajectoryPlanner
-
-    return SafeTrajectoryPlanner

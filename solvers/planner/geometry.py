@@ -1,4 +1,4 @@
-"""Exact point/segment-to-circle distances: the safety certificate of the planner (SPEC §2.2).
+"""Exact point/segment-to-circle distances: the safety certificate of the planner (§3.5.2).
 
 The thesis (§3.5.2) certifies waypoints only and names the discretisation between waypoints as a
 source of violations; :func:`segment_distances` gives the exact distance of every segment

@@ -1,8 +1,9 @@
-"""IPOPT backend: Eq. 3.3 with hard pairwise clearance constraints (SPEC §2.2).
+"""The IPOPT NLP: Eq. 3.3 with hard pairwise clearance constraints (thesis §3.5.2).
 
 ``min ||x_N - g||^2 + rho h_smooth`` subject to ``h_smooth <= sigma_smooth`` and, per waypoint i
 and obstacle j, ``||x_i - o_j||^2 >= (c_j + delta)^2`` (the aggregated hinge of Eq. 3.3 is
-degenerate for an interior-point method: research note §1.7). With the continuous option every
+degenerate for an interior-point method: its value and gradient vanish on the whole feasible
+set, so no constraint qualification holds). With the continuous option every
 segment ``[x_i, x_{i+1}]`` and obstacle j get a separating direction ``n_ij`` (two extra variables)
 with ``n_ij^T (x_i - o_j) >= c_j + delta``, ``n_ij^T (x_{i+1} - o_j) >= c_j + delta`` and
 ``||n_ij||^2 <= 1``, which holds iff the whole segment keeps the clearance.
@@ -22,7 +23,7 @@ import numpy as np
 
 from solvers.planner.problem import GPPrior
 
-#: IPOPT options for re-solves from a good initial guess (research note §1.3-1.4).
+#: IPOPT options for re-solves from a good initial guess (solvers/README.md, "Calibration").
 IPOPT_OPTIONS: dict[str, object] = {
     "print_level": 0,
     "sb": "yes",

@@ -1,4 +1,4 @@
-"""The planning problem of thesis Eqs. 3.3-3.7 in a start-relative frame (SPEC §2.2).
+"""The planning problem of thesis Eqs. 3.3-3.7 in a start-relative frame (§3.5.2).
 
 Decision variables are the waypoints ``x_2..x_N`` and velocities ``v_2..v_N``; the first waypoint
 is pinned to the start and the first velocity to zero (``h_init <= sigma_init`` with
@@ -22,8 +22,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-#: Names of the solver backends.
-BACKENDS: tuple[str, ...] = ("ipopt", "lm", "scp")
 #: Escape mode: a waypoint may be at most this much (m) closer to a violated obstacle than the
 #: start is (the solvers are asked for a tenth of it, so their tolerances fit in between).
 ESCAPE_TOLERANCE = 1e-6

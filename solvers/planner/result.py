@@ -1,4 +1,4 @@
-"""The planner's result object (SPEC §2.2, issue 3 deliverable 5)."""
+"""The planner's result object: a plan and its safety certificate (thesis §3.5.2)."""
 
 from __future__ import annotations
 

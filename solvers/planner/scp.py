@@ -1,4 +1,4 @@
-"""Sequential convex programming backend on OSQP (the TrajOpt idea; SPEC §2.2).
+"""Sequential convex programming on OSQP (the TrajOpt idea) for the problem of thesis Eq. 3.3.
 
 Each iteration solves the convex QP
 
@@ -17,7 +17,7 @@ the segment from ``z_k`` to the QP solution is a quadratic in the step length an
 back in closed form to keep ``h <= sigma``; the segment stays inside the half-spaces. The solver
 is therefore safe whenever it is stopped. The objective is convex quadratic with a constant
 Hessian (the GP prior stays quadratic), which avoids the indefinite Lagrangian Hessian that made
-CasADi's ``sqpmethod`` fail (research note §1.6). OSQP is set up once per compiled slot count and
+CasADi's ``sqpmethod`` fail on this problem. OSQP is set up once per compiled slot count and
 updated and warm-started in place.
 """
 

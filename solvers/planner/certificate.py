@@ -1,0 +1,141 @@
+"""The safety certificate: every returned plan keeps the clearance, or it is the stationary one.
+
+Thesis §3.5.2: the stationary trajectory is feasible whenever the start is, so a plan that fails
+the check (at the waypoints, or along every segment with the continuous option) is replaced by
+it and flagged as a fallback. In escape mode (the start inside some clearance) the check asks
+"no closer than the start" of those obstacles (:func:`solvers.planner.problem.prepare`) and the
+plan aims at :func:`escape_target` instead of the subgoal (solvers/README.md, "Escape mode").
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from solvers.planner.backend import Iterate
+from solvers.planner.geometry import point_distances, segment_distances
+from solvers.planner.problem import PreparedProblem, split
+from solvers.planner.result import PlanResult
+
+#: Tolerance of the certificate (metres): a plan passes when every distance >= required - this.
+CERTIFICATE_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """The check of a plan against every obstacle given (not only those the backend saw).
+
+    Attributes:
+        n_waypoints: N, waypoints including the start.
+        clearance: eps' (m).
+        continuous: Check the segments between waypoints too (exact segment distances).
+        goal_tolerance: ``reached_subgoal`` is ``||x_N - subgoal|| < goal_tolerance``.
+    """
+
+    n_waypoints: int
+    clearance: float
+    continuous: bool
+    goal_tolerance: float
+
+    def passes(self, prep: PreparedProblem, z: np.ndarray) -> bool:
+        """Each waypoint (segment) keeps its required distance to every obstacle."""
+        if not np.all(np.isfinite(z)):
+            return False
+        if len(prep.centres) == 0:
+            return True
+        positions, _ = split(z, self.n_waypoints)
+        distances = (segment_distances(positions, prep.centres) if self.continuous
+                     else point_distances(positions, prep.centres))
+        return bool(np.all(distances >= prep.required[None, :] - CERTIFICATE_TOLERANCE))
+
+    def clear_of(
+        self, prep: PreparedProblem, z: np.ndarray, sel: np.ndarray, need: np.ndarray
+    ) -> bool:
+        """The waypoints after the start (all segments) keep ``need`` from the obstacles
+        ``sel`` (no tolerance)."""
+        if len(sel) == 0:
+            return True
+        positions, _ = split(z, self.n_waypoints)
+        centres = prep.centres[sel]
+        distances = (segment_distances(positions, centres) if self.continuous
+                     else point_distances(positions[1:], centres))
+        return bool(np.all(distances >= need[None, :]))
+
+    def certify(
+        self, prep: PreparedProblem, plan: Iterate, *, backend: str, tic: float
+    ) -> PlanResult:
+        """Check the plan against every obstacle; replace it by the stationary one if it fails.
+
+        Args:
+            prep: The prepared problem.
+            plan: The backend's (or the rescue's) iterate.
+            backend: Name reported in the result.
+            tic: ``time.perf_counter()`` at the start of the ``plan`` call.
+        """
+        z = plan.z
+        status = plan.status
+        fallback = plan.failed or not np.all(np.isfinite(z))
+        if fallback:
+            z = np.zeros(4 * (self.n_waypoints - 1))
+            status = f"fallback: {plan.status}"
+        positions, velocities = split(z, self.n_waypoints)
+        radii = prep.clearances - self.clearance
+        min_clear = min_cont = float("inf")
+        feasible = True
+        if len(prep.centres):
+            point = point_distances(positions, prep.centres)
+            segment = segment_distances(positions, prep.centres)
+            checked = segment if self.continuous else point
+            floor = CERTIFICATE_TOLERANCE
+            if not fallback and not np.all(checked >= prep.required[None, :] - floor):
+                fallback = True
+                status = f"fallback: {plan.status}: plan failed the clearance certificate"
+                positions[:] = 0.0
+                velocities[:] = 0.0
+                point = np.broadcast_to(prep.start_distances, point.shape)
+                segment = np.broadcast_to(prep.start_distances, segment.shape)
+                checked = segment if self.continuous else point
+            min_clear = float(np.min(point - radii[None, :]))
+            min_cont = float(np.min(segment - radii[None, :]))
+            feasible = bool(np.all(checked >= prep.clearances[None, :] - floor))
+        gap = positions[-1] - prep.goal
+        objective = float(gap @ gap)
+        return PlanResult(
+            waypoints=positions + prep.start,
+            velocities=velocities,
+            feasible=feasible,
+            status=status,
+            fallback=fallback,
+            escape_mode=prep.escape_mode,
+            objective=objective,
+            min_clearance=min_clear,
+            min_clearance_continuous=min_cont,
+            iterations=int(plan.iterations),
+            solve_time_s=time.perf_counter() - tic,
+            backend=backend,
+            reached_subgoal=bool(np.sqrt(objective) < self.goal_tolerance),
+            multiplier=float(plan.multiplier),
+            n_considered=len(prep.selected),
+            rescued=plan.rescued and not fallback,
+        )
+
+
+def escape_target(prep: PreparedProblem) -> np.ndarray:
+    """Escape mode's target (start-relative): 0.1 m outside the violated clearances.
+
+    The direction is the sum of the outward directions from the violated obstacles' centres,
+    weighted by how deep the start is inside each; when they cancel (a start between two
+    obstacles) it is perpendicular to the first one's, and (1, 0) at an exact centre.
+    """
+    violated = np.flatnonzero(prep.escape)
+    depth = prep.clearances[violated] - prep.start_distances[violated]
+    outward = -prep.centres[violated]
+    norms = np.hypot(outward[:, 0], outward[:, 1])
+    units = np.where(norms[:, None] > 1e-9, outward / np.maximum(norms, 1e-9)[:, None],
+                     np.array([1.0, 0.0]))
+    direction = (units * depth[:, None]).sum(axis=0)
+    if np.hypot(*direction) < 1e-6 * max(float(depth.max()), 1e-9):
+        direction = np.array([-units[0, 1], units[0, 0]])
+    return direction / np.hypot(*direction) * (float(depth.max()) + 0.1)
