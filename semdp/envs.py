@@ -1,4 +1,7 @@
-"""Environment factory: ``gymnasium.make`` + optional per-env wrapper + vectorisation (SPEC §4.1).
+"""Environment factory: ``gymnasium.make`` + optional per-env wrapper + vectorisation.
+
+The env node of a config (``conf/env``) is the argument of :func:`make_vec_env`; see
+``docs/design.md`` for the data flow config -> env -> wrapper -> planner -> follower.
 
 Importing this module registers the ``sims/...`` ids (pymunk Safety Gym replica, driving tasks)
 and the test CMDP ``semdp/SpeedLimit-v0``.
@@ -20,6 +23,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
+from hydra.utils import instantiate
+from omegaconf import OmegaConf
 
 import semdp.testbed  # noqa: F401  (registers semdp/SpeedLimit-v0)
 
@@ -58,32 +63,45 @@ class RequireCost(gym.Wrapper):
 def make_env(
     env_id: str,
     kwargs: Mapping[str, Any] | None = None,
-    wrapper: Callable[[gym.Env], gym.Env] | None = None,
+    wrapper: Callable[[gym.Env], gym.Env] | Mapping[str, Any] | None = None,
     add_zero_cost: bool = False,
 ) -> gym.Env:
     """One environment: ``gymnasium.make(env_id, **kwargs)``, then ``wrapper`` and the cost check.
 
-    A module-level function so that ``functools.partial(make_env, ...)`` pickles (checkpoints
-    pickle the vector env).
+    ``wrapper`` is a callable or a Hydra node (``_target_`` + ``_partial_: true``) that is
+    instantiated here, once per environment, so that the objects it holds (a planner with its
+    warm start, a follower) belong to this environment alone. A module-level function so that
+    ``functools.partial(make_env, ...)`` pickles (checkpoints pickle the vector env).
     """
     if env_id not in gym.registry:
         known = sorted(k for k in gym.registry if k.startswith(("sims/", "semdp/")))
         raise ValueError(f"unknown env id {env_id!r}; registered project ids: {known}")
-    env = gym.make(env_id, **dict(kwargs or {}))
-    if wrapper is not None:
-        env = wrapper(env)
+    env = apply_wrapper(gym.make(env_id, **dict(kwargs or {})), wrapper)
     return ZeroCost(env) if add_zero_cost else RequireCost(env)
 
 
-def _resolve_wrapper(wrapper: Any) -> Callable[[gym.Env], gym.Env] | None:
+def apply_wrapper(
+    env: gym.Env, wrapper: Callable[[gym.Env], gym.Env] | Mapping[str, Any] | None
+) -> gym.Env:
+    """``env`` wrapped by a callable, by a freshly instantiated ``_partial_`` node, or as is."""
+    if wrapper is None:
+        return env
+    if isinstance(wrapper, Mapping) or OmegaConf.is_config(wrapper):
+        wrapper = instantiate(wrapper)
+        if not callable(wrapper):
+            raise ValueError(f"env.wrapper must instantiate to a callable, got {type(wrapper)}")
+    return wrapper(env)
+
+
+def plain_wrapper(wrapper: Any) -> Callable[[gym.Env], gym.Env] | dict[str, Any] | None:
+    """A callable as it is; a config node as a plain, resolved dict (the factory is pickled)."""
     if wrapper is None or callable(wrapper):
         return wrapper
-    from hydra.utils import instantiate
-
-    resolved = instantiate(wrapper)
-    if not callable(resolved):
-        raise ValueError(f"env.wrapper must instantiate to a callable, got {type(resolved)}")
-    return resolved
+    if OmegaConf.is_config(wrapper):
+        wrapper = OmegaConf.to_container(wrapper, resolve=True)
+    if not isinstance(wrapper, Mapping) or "_target_" not in wrapper:
+        raise ValueError(f"env.wrapper must be null, a callable or a _target_ node: {wrapper!r}")
+    return dict(wrapper)
 
 
 def make_vec_env(
@@ -112,7 +130,7 @@ def make_vec_env(
         make_env,
         env_cfg["id"],
         kwargs,
-        _resolve_wrapper(wrapper),
+        plain_wrapper(wrapper),
         bool(env_cfg.get("add_zero_cost", False)),
     )
     envs = gym.vector.SyncVectorEnv(

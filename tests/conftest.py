@@ -5,10 +5,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import pytest
-from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig
 
-from semdp.paths import CONF_DIR
+from semdp.configs import compose_config
 
 #: Overrides that shrink any algorithm to a seconds-long run on the test CMDP.
 TINY = [
@@ -32,8 +31,7 @@ def compose_train() -> Callable[..., DictConfig]:
     """``compose_train(*overrides)`` -> the composed ``train`` config (no Hydra app running)."""
 
     def _compose(*overrides: str) -> DictConfig:
-        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-            return compose(config_name="train", overrides=list(overrides))
+        return compose_config("train", overrides)
 
     return _compose
 

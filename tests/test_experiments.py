@@ -114,9 +114,12 @@ def test_semdp_method_picks_label_algorithm_and_env(
     if method == "ours_gt":
         assert cfg.env.wrapper.perception == "gt"
     if method == "ours_wo_lag":
-        assert cfg.env.eval_wrapper.planner == cfg.env.wrapper.planner == "lm"
+        assert cfg.env.eval_wrapper.planner == cfg.env.wrapper.planner
+        assert cfg.env.eval_wrapper.planner.lm_adaptive is False
     if method == "ours":
-        assert cfg.env.eval_wrapper.planner == "lm_adaptive"
+        assert cfg.env.eval_wrapper.planner.lm_adaptive is True
+        assert cfg.env.wrapper.planner.lm_adaptive is False
+        assert cfg.env.wrapper.planner.rescue_backend == "ipopt"  # the Car's rescue
 
 
 def test_semdp_goal_and_tradeoff_and_transfer_presets() -> None:
@@ -144,8 +147,8 @@ def _semdp_env_node() -> dict[str, Any]:
 def test_with_clearance_changes_only_the_evaluation_planner() -> None:
     node = _semdp_env_node()
     out = with_clearance(node, 0.25)
-    assert out["eval_wrapper"]["planner_kwargs"] == {"clearance": 0.25}
-    assert node["eval_wrapper"]["planner_kwargs"] == {}  # the input is not mutated
+    assert out["eval_wrapper"]["planner"]["clearance"] == 0.25
+    assert node["eval_wrapper"]["planner"]["clearance"] == 0.5  # the input is not mutated
     assert out["wrapper"] == node["wrapper"]
     assert is_semdp_env(node)
     with pytest.raises(ValueError, match="clearance"):

@@ -10,15 +10,16 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
+from hydra.utils import instantiate
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.common.networks import SquashedGaussianActor
+from semdp.configs import compose_node
 from semdp.embedded.export import actor_mean_state
 from semdp.embedded.follower import (
-    WEIGHTS_DIR,
     PolicyFollower,
     ProportionalFollower,
-    build_follower,
+    default_follower,
     follower_observation,
 )
 from semdp.embedded.follower_eval import evaluate_reaching, point_to_polyline_distance
@@ -94,11 +95,12 @@ def test_proportional_follower_is_gain_times_error_clipped() -> None:
         ProportionalFollower(gain=0.0)
 
 
-def test_build_follower_auto_picks_the_robot_default() -> None:
-    assert isinstance(build_follower("auto", "mass"), ProportionalFollower)
-    assert isinstance(build_follower("point"), PolicyFollower)
-    with pytest.raises(ValueError, match="unknown follower"):
-        build_follower("hovercraft")
+def test_default_follower_is_the_robots_committed_one() -> None:
+    assert isinstance(default_follower("mass"), ProportionalFollower)
+    point = default_follower("point")
+    assert isinstance(point, PolicyFollower) and point.weights.name == "point.pt"
+    with pytest.raises(ValueError, match="robot"):
+        default_follower("hovercraft")
 
 
 def test_polyline_distance_oracle() -> None:
@@ -108,7 +110,6 @@ def test_polyline_distance_oracle() -> None:
     assert point_to_polyline_distance(np.array([-0.3, -0.4]), line) == pytest.approx(0.5)
 
 
-@pytest.mark.skipif(not (WEIGHTS_DIR / "point.pt").is_file(), reason="no committed weights")
 def test_committed_point_follower_reaches_goals() -> None:
     stats = evaluate_reaching(PolicyFollower("point.pt"), "sims/SafetyPointGoal0-v0", trials=10,
                               seed=123)
@@ -116,7 +117,6 @@ def test_committed_point_follower_reaches_goals() -> None:
     assert stats.mean_steps_to_success <= 50
 
 
-@pytest.mark.skipif(not (WEIGHTS_DIR / "car.pt").is_file(), reason="no committed weights")
 def test_committed_car_follower_reaches_goals() -> None:
     # the acceptance bar (>= 95%); the earlier 80k-step weights reached 92.5% of these 40 goals
     stats = evaluate_reaching(PolicyFollower("car.pt"), "sims/SafetyCarGoal0-v0", trials=40,
@@ -139,7 +139,7 @@ def test_every_follower_config_builds_and_acts_in_its_robots_push_env(name: str)
     env = gym.make(f"sims/Safety{robot.capitalize()}Push1-v0")
     obs, _ = env.reset(seed=0)
     base = env.unwrapped
-    follower = build_follower(name, robot)
+    follower = instantiate(compose_node("follower", name))
     if isinstance(follower, PolicyFollower):
         follower.bind(base.obs_slices)
     target = np.asarray(base.robot_position) + np.array([0.3, 0.0])

@@ -10,13 +10,12 @@ from pathlib import Path
 import pytest
 from omegaconf import DictConfig
 
-from semdp.embedded.follower import WEIGHTS_DIR
 from semdp.train import run
 
 #: Shrinks a SEMDP preset to seconds: 60 high-level steps, a 2-episode final evaluation.
 TINY_SEMDP = [
     "budget=ci", "total_steps=60", "budget.steps_per_epoch=30", "eval_every=2", "eval_episodes=1",
-    "final_eval_episodes=2", "+env.kwargs.max_episode_steps=200",
+    "final_eval_episodes=2", "++env.kwargs.max_episode_steps=200",
 ]
 TINY_SAC = ["algo.learning_starts=20", "algo.batch_size=16", "algo.hidden_sizes=[16,16]",
             "algo.buffer_size=1000"]
@@ -41,22 +40,21 @@ def test_semdp_main_preset_trains_and_writes_artefacts(
 
 
 @pytest.mark.parametrize(
-    ("preset", "label"),
-    [("semdp_wo_lag", "Ours w/o Lag"), ("semdp_gt", "Ours w/ gt"),
-     ("semdp_ppo_lag_sac", "PPO Lag + SAC")],
+    ("method", "label"),
+    [("ours_wo_lag", "Ours w/o Lag"), ("ours_gt", "Ours w/ gt"),
+     ("ppo_lag_sac", "PPO Lag + SAC")],
 )
-def test_semdp_ablation_presets_train(
-    preset: str, label: str, compose_train: Callable[..., DictConfig], tmp_path: Path
+def test_semdp_ablation_methods_train(
+    method: str, label: str, compose_train: Callable[..., DictConfig], tmp_path: Path
 ) -> None:
-    algo = TINY_SAC if preset != "semdp_ppo_lag_sac" else [
+    algo = TINY_SAC if method != "ppo_lag_sac" else [
         "algo.update_iters=1", "algo.num_minibatches=2", "algo.hidden_sizes=[16,16]"]
-    cfg = compose_train(f"experiment={preset}", "env=semdp_mass_push1", *TINY_SEMDP, *algo,
-                        "env.post_train=null")
+    cfg = compose_train("experiment=semdp_ablations", f"method={method}", "robot=mass",
+                        "budget=ci", *TINY_SEMDP, *algo, "env.post_train=null")
     metrics = run(cfg, tmp_path)
     assert metrics["status"] == "completed" and metrics["label"] == label
 
 
-@pytest.mark.skipif(not (WEIGHTS_DIR / "point.pt").is_file(), reason="no committed weights")
 def test_semdp_point_push1_config_trains_under_budget_ci(
     compose_train: Callable[..., DictConfig], tmp_path: Path
 ) -> None:

@@ -4,17 +4,20 @@ step, tracking-point oracle, perception modes and the ablation planner."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from omegaconf import DictConfig, OmegaConf
 
-import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded.follower import ProportionalFollower
 from semdp.embedded.perception import perceive_obstacles
 from semdp.embedded.straight import StraightLinePlanner
 from semdp.embedded.tracking import ego_to_world, select_tracking_index, world_to_ego
-from semdp.embedded.wrapper import SafetyEmbeddedEnv, build_planner
+from semdp.embedded.wrapper import SafetyEmbeddedEnv
+from semdp.envs import make_env
+from solvers.planner import SafeTrajectoryPlanner
 
 CLEARANCE = 0.5
 
@@ -33,7 +36,7 @@ class RecordingFollower:
 
 
 def _semdp(env_id: str = "sims/SafetyMassPush1-v0", **kwargs) -> SafetyEmbeddedEnv:
-    kwargs.setdefault("planner", "lm_adaptive")
+    kwargs.setdefault("planner", SafeTrajectoryPlanner(backend="lm", lm_adaptive=True))
     kwargs.setdefault("follower", ProportionalFollower(gain=8.0))
     return SafetyEmbeddedEnv(gym.make(env_id), **kwargs)
 
@@ -61,7 +64,7 @@ def test_tracking_ego_frame_rotation_round_trips() -> None:
 
 def test_semdp_reward_is_exactly_the_sum_of_inner_rewards() -> None:
     follower = RecordingFollower(ProportionalFollower(gain=8.0))
-    env = _semdp(follower=follower, planner="lm")
+    env = _semdp(follower=follower, planner=SafeTrajectoryPlanner(backend="lm"))
     replay = gym.make("sims/SafetyMassPush1-v0")
     env.reset(seed=3)
     replay.reset(seed=3)
@@ -133,18 +136,31 @@ def test_semdp_rejects_bad_arguments() -> None:
         _semdp(perception="radar")
     with pytest.raises(ValueError, match="k"):
         _semdp(k=0)
-    with pytest.raises(ValueError, match="unknown planner"):
+    with pytest.raises(ValueError, match="plan"):
         _semdp(planner="teleport")
+    with pytest.raises(ValueError, match="act"):
+        _semdp(follower="point")
     env = _semdp()
     env.reset(seed=0)
     with pytest.raises(ValueError, match="2 finite numbers"):
         env.step(np.array([np.nan, 0.0]))
 
 
-def test_semdp_planner_kwargs_reach_the_planner() -> None:
-    planner = build_planner("lm", {"clearance": 0.7, "continuous": True})
-    assert planner.clearance == 0.7 and planner.continuous
-    assert isinstance(build_planner("straight"), StraightLinePlanner)
+def test_semdp_config_overrides_reach_the_instantiated_planner(
+    compose_train: Callable[..., DictConfig],
+) -> None:
+    cfg = compose_train("algo=sac", "env=semdp_mass_push1", "env.planner.clearance=0.7",
+                        "env.planner.continuous=true", "planner@env.eval_planner=straight")
+    env = make_env(cfg.env.id, {}, OmegaConf.to_container(cfg.env.wrapper, resolve=True))
+    semdp = env.env
+    assert isinstance(semdp, SafetyEmbeddedEnv)
+    assert semdp.planner.clearance == 0.7 and semdp.planner.continuous
+    assert isinstance(semdp.follower, ProportionalFollower)  # the Mass robot's follower
+    eval_env = make_env(cfg.env.id, {}, OmegaConf.to_container(cfg.env.eval_wrapper, resolve=True))
+    assert isinstance(eval_env.env.planner, StraightLinePlanner)
+    # each env owns its planner (its warm start): two envs from one node do not share it
+    other = make_env(cfg.env.id, {}, OmegaConf.to_container(cfg.env.wrapper, resolve=True))
+    assert other.env.planner is not semdp.planner
 
 
 def test_straight_planner_ignores_obstacles_and_reports_clearance() -> None:

@@ -13,14 +13,12 @@ action of the wrapped robot. Two kinds:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from semdp.embedded.tracking import world_to_ego
-from semdp.paths import CONF_DIR
 
 #: Committed follower weights (``point.pt``, ``car.pt``; see ``weights/README.md``).
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
@@ -135,27 +133,3 @@ def default_follower(robot: str, weights: str | Path | None = None) -> Follower:
     if robot == "mass":
         return ProportionalFollower(gain=8.0)
     return PolicyFollower(weights or WEIGHTS_DIR / f"{robot}.pt")
-
-
-def build_follower(spec: Any, robot: str | None = None) -> Follower:
-    """A follower from ``"auto"`` (the default of ``robot``), a ``conf/follower`` name, a config
-    mapping with ``_target_`` or an object with ``act``."""
-    if hasattr(spec, "act"):
-        return spec
-    if spec == "auto":
-        if robot is None:
-            raise ValueError("follower='auto' needs the env's robot name (env.robot_name)")
-        return default_follower(robot)
-    from hydra.utils import instantiate
-    from omegaconf import OmegaConf
-
-    if isinstance(spec, str):
-        path = CONF_DIR / "follower" / f"{spec}.yaml"
-        if not path.is_file():
-            names = sorted(p.stem for p in (CONF_DIR / "follower").glob("*.yaml"))
-            raise ValueError(f"unknown follower {spec!r}; valid: 'auto' or one of {names}")
-        return instantiate(OmegaConf.load(path))
-    if isinstance(spec, Mapping) or OmegaConf.is_config(spec):
-        return instantiate(spec)
-    raise ValueError(f"follower must be 'auto', a conf/follower name, a config or a follower, "
-                     f"got {spec!r}")

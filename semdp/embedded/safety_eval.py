@@ -1,8 +1,12 @@
-"""Evaluation-time safety of the SEMDP with a source for every violation (issue 7 acceptance).
+"""Evaluation-time safety of the SEMDP with a source for every violation (thesis §3.5.1).
 
-    python -m semdp.embedded.safety_eval --env-id sims/SafetyPointPush1-v0 --episodes 50 \
-        --planner lm_adaptive --perception lidar --run outputs/train/<semdp run dir>
-    python -m semdp.embedded.safety_eval --env-id sims/SafetyMassPush1-v0 --policy random
+    python -m semdp.embedded.safety_eval --env semdp_point_push1 --episodes 50 \
+        --run outputs/train/<semdp run dir>
+    python -m semdp.embedded.safety_eval --env semdp_mass_push1 --policy random \
+        planner@env.eval_planner=lm env.perception=gt
+
+The env is the evaluation env of ``conf/env/<--env>.yaml`` (its ``eval_wrapper``), composed by
+Hydra with the trailing overrides.
 
 Runs ``episodes`` full episodes of :class:`SafetyEmbeddedEnv` with a trained SAC high level
 (mean action, loaded from a run directory) or uniformly random subgoals, and attributes each
@@ -30,7 +34,10 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from hydra.utils import instantiate
+from omegaconf import OmegaConf
 
+from semdp.configs import compose_config
 from semdp.embedded.follower_eval import point_to_polyline_distance
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
 
@@ -132,26 +139,22 @@ def evaluate_safety(
 def main(argv: list[str] | None = None) -> None:
     """CLI: see the module docstring."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env-id", default="sims/SafetyPointPush1-v0")
-    parser.add_argument("--planner", default="lm_adaptive")
-    parser.add_argument("--planner-kwargs", default="{}", help='JSON, e.g. {"clearance": 0.6}')
-    parser.add_argument("--perception", default="lidar", choices=("lidar", "gt"))
-    parser.add_argument("--brake-steps", type=int, default=0)
+    parser.add_argument("--env", default="semdp_point_push1", help="a conf/env SEMDP env")
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--seed", type=int, default=10_000)
     parser.add_argument("--run", default=None, help="SEMDP run dir (SAC high level)")
     parser.add_argument("--policy", default="sac", choices=("sac", "sac_sample", "random"),
                         help="sac: mean action; sac_sample: sampled as in training")
     parser.add_argument("--json", default=None)
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides of the train config")
     args = parser.parse_args(argv)
 
-    import semdp.envs  # noqa: F401  (registers the sims ids)
-
-    env = SafetyEmbeddedEnv(
-        gym.make(args.env_id), planner=args.planner,
-        planner_kwargs=json.loads(args.planner_kwargs), perception=args.perception,
-        brake_steps=args.brake_steps,
-    )
+    cfg = compose_config("train", [f"env={args.env}", *args.overrides])
+    env_cfg = OmegaConf.to_container(cfg.env, resolve=True)
+    assert isinstance(env_cfg, dict)
+    if not isinstance(env_cfg.get("eval_wrapper"), dict):
+        raise SystemExit(f"safety_eval: env={args.env} is not a Safety-Embedded MDP env")
+    env = instantiate(env_cfg["eval_wrapper"])(gym.make(env_cfg["id"], **env_cfg["kwargs"]))
     if args.policy == "random" or args.run is None:
         rng = np.random.default_rng(args.seed)
 
@@ -167,12 +170,9 @@ def main(argv: list[str] | None = None) -> None:
     tic = time.perf_counter()
     out = evaluate_safety(env, policy, args.episodes, seed=args.seed)
     out["wall_time_s"] = time.perf_counter() - tic
-    out.update(env_id=args.env_id, planner=args.planner, perception=args.perception,
-               policy=label, planner_kwargs=json.loads(args.planner_kwargs),
-               brake_steps=args.brake_steps, plan_ms_mean=1e3 * env.timing["plan_s"]
-               / max(env.high_level_steps, 1))
-    print(f"{args.env_id} [{label}] planner={args.planner} {args.planner_kwargs} "
-          f"perception={args.perception} brake={args.brake_steps}: return "
+    out.update(env_id=env_cfg["id"], env=args.env, overrides=args.overrides, policy=label,
+               plan_ms_mean=1e3 * env.timing["plan_s"] / max(env.high_level_steps, 1))
+    print(f"{env_cfg['id']} [{label}] {' '.join(args.overrides)}: return "
           f"{out['return_mean']:.2f} +- {out['return_std']:.2f}, cost {out['cost_mean']:.3f} "
           f"({out['episodes_with_cost']}/{out['episodes']} episodes with cost), violation "
           f"windows by source {out['violation_windows_by_source']}, fallback "

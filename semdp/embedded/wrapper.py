@@ -1,49 +1,20 @@
-"""The Safety-Embedded MDP as a gymnasium wrapper (thesis §3.5.1, Alg. 2; SPEC §4.2)."""
+"""The Safety-Embedded MDP as a gymnasium wrapper (thesis §3.5.1, Alg. 2; docs/design.md)."""
 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from semdp.embedded.follower import Follower, PolicyFollower, build_follower
+from semdp.embedded.follower import Follower, PolicyFollower, default_follower
 from semdp.embedded.perception import OBSTACLE_KINDS, perceive_obstacles
 from semdp.embedded.tracking import ego_to_world, select_tracking_index
-from semdp.paths import CONF_DIR
+from solvers.planner import SafeTrajectoryPlanner
 
 #: Timing counters kept by :class:`SafetyEmbeddedEnv` (seconds, summed over its lifetime).
 TIMING_KEYS: tuple[str, ...] = ("perception_s", "plan_s", "follow_s", "sim_s")
-
-
-def build_planner(spec: Any, overrides: Mapping[str, Any] | None = None) -> Any:
-    """A planner from a name in ``conf/planner`` (``"lm"``, ``"lm_adaptive"``, ``"ipopt"``,
-    ``"scp"``, ``"straight"``), a config mapping with ``_target_`` or an object with ``plan``;
-    ``overrides`` replace constructor keys of a name or a mapping."""
-    if hasattr(spec, "plan"):
-        if overrides:
-            raise ValueError("planner_kwargs apply to a planner name or config, not an object")
-        return spec
-    from hydra.utils import instantiate
-    from omegaconf import OmegaConf
-
-    if spec == "straight":  # obstacle-blind ablation planner ("PPO Lag + SAC")
-        from semdp.embedded.straight import StraightLinePlanner
-
-        return StraightLinePlanner(**dict(overrides or {}))
-    if isinstance(spec, str):
-        path = CONF_DIR / "planner" / f"{spec}.yaml"
-        if not path.is_file():
-            names = sorted(p.stem for p in (CONF_DIR / "planner").glob("*.yaml"))
-            raise ValueError(f"unknown planner {spec!r}; valid names: {[*names, 'straight']}")
-        spec = OmegaConf.load(path)
-    if isinstance(spec, Mapping) or OmegaConf.is_config(spec):
-        node = OmegaConf.merge(OmegaConf.create(dict(spec) if not OmegaConf.is_config(spec)
-                                                else spec), dict(overrides or {}))
-        return instantiate(node)
-    raise ValueError(f"planner must be a conf/planner name, a config or a planner, got {spec!r}")
 
 
 class SafetyEmbeddedEnv(gym.Wrapper):
@@ -75,15 +46,15 @@ class SafetyEmbeddedEnv(gym.Wrapper):
     Args:
         env: a ``sims`` Safety Gym env (any wrappers; the unwrapped env provides the pose,
             obstacle and LiDAR accessors).
-        planner: a planner object (``plan(start, subgoal, obstacles)`` returning a result with
-            ``waypoints``), a ``conf/planner`` name or a config mapping; a name or a mapping is
-            instantiated here, so every sub-env of a vector env has its own planner (and its
-            own receding-horizon warm start).
-        follower: a :class:`Follower`, ``"auto"`` (the committed follower of the env's robot:
-            SAC weights for Point and Car, the P-controller for Mass), a ``conf/follower`` name
-            or a config mapping.
-        planner_kwargs: constructor overrides for a planner given by name or config (e.g.
-            ``{"clearance": 0.6, "continuous": True}``).
+        planner: the planner (``plan(start, subgoal, obstacles, warm_start=...)`` returning a
+            result with ``waypoints`` and its certificate); None = the thesis' training setting,
+            :class:`~solvers.planner.SafeTrajectoryPlanner` with fixed-lambda LM. Each wrapper
+            needs its own planner (it keeps the receding-horizon warm start): the env factory
+            (:func:`semdp.envs.make_env`) instantiates the config's planner node once per
+            sub-env.
+        follower: a :class:`Follower`; None = the committed follower of the env's robot (SAC
+            weights for Point and Car, the P-controller for Mass; ``conf/robot/<name>.yaml``
+            names the same ones).
         k: low-level steps per high-level step (thesis: 10).
         subgoal_scale: metres per unit action in the ego frame (thesis code: 2.0).
         d_min: tracking-point look-ahead (App. B.2.2: 0.2 m).
@@ -99,9 +70,8 @@ class SafetyEmbeddedEnv(gym.Wrapper):
     def __init__(
         self,
         env: gym.Env,
-        planner: Any = "lm",
-        follower: Any = "auto",
-        planner_kwargs: Mapping[str, Any] | None = None,
+        planner: Any = None,
+        follower: Follower | None = None,
         k: int = 10,
         subgoal_scale: float = 2.0,
         d_min: float = 0.2,
@@ -129,8 +99,16 @@ class SafetyEmbeddedEnv(gym.Wrapper):
                     f"SafetyEmbeddedEnv needs a sims Safety Gym env (missing {attr!r}); "
                     f"got {base!r}"
                 )
-        self.planner = build_planner(planner, planner_kwargs)
-        self.follower: Follower = build_follower(follower, getattr(base, "robot_name", None))
+        if planner is None:
+            planner = SafeTrajectoryPlanner(backend="lm")
+        if not callable(getattr(planner, "plan", None)):
+            raise ValueError(f"planner must have a plan() method, got {planner!r}")
+        if follower is None:
+            follower = default_follower(getattr(base, "robot_name", ""))
+        if not callable(getattr(follower, "act", None)):
+            raise ValueError(f"follower must have an act() method, got {follower!r}")
+        self.planner = planner
+        self.follower: Follower = follower
         self.k = int(k)
         self.subgoal_scale = float(subgoal_scale)
         self.d_min = float(d_min)

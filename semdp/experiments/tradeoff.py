@@ -35,28 +35,27 @@ DEFAULT_CLEARANCES: tuple[float, ...] = (0.1, 0.25, 0.5, 0.75)
 def is_semdp_env(env_cfg: dict[str, Any]) -> bool:
     """Whether an env config wraps its env in a planner (a ``semdp_*`` env config)."""
     node = env_cfg.get("eval_wrapper") or env_cfg.get("wrapper")
-    return isinstance(node, dict) and "planner" in node
+    return isinstance(node, dict) and isinstance(node.get("planner"), dict)
 
 
 def with_clearance(env_cfg: dict[str, Any], clearance: float) -> dict[str, Any]:
     """A copy of a SEMDP env config whose *evaluation* planner uses ``clearance`` as eps'.
 
     Raises:
-        ValueError: the env has no SEMDP ``eval_wrapper``/``wrapper`` with ``planner_kwargs``,
-            or ``clearance`` is negative.
+        ValueError: the env has no SEMDP ``eval_wrapper``/``wrapper`` with a planner node, or
+            ``clearance`` is negative.
     """
     if not clearance >= 0:
         raise ValueError(f"clearance (eps') must be >= 0, got {clearance}")
     out = copy.deepcopy(env_cfg)
     key = "eval_wrapper" if out.get("eval_wrapper") else "wrapper"
     node = out.get(key)
-    if not isinstance(node, dict) or "planner" not in node:
+    if not isinstance(node, dict) or not isinstance(node.get("planner"), dict):
         raise ValueError(
             f"env {out.get('id')!r} is not a Safety-Embedded MDP env (no planner in env.{key}); "
             "the eps' trade-off needs a semdp_* env config"
         )
-    node["planner_kwargs"] = {**dict(node.get("planner_kwargs") or {}), "clearance": clearance}
-    out[key] = node
+    node["planner"]["clearance"] = float(clearance)
     return out
 
 

@@ -36,7 +36,7 @@ from omegaconf import DictConfig
 
 from semdp.algos.base import Algorithm
 from semdp.common.logger import write_metrics
-from semdp.envs import _resolve_wrapper
+from semdp.envs import apply_wrapper, plain_wrapper
 from semdp.experiments.evaluation import chain_post_train, env_config, evaluate_on, load_trained
 
 logger = logging.getLogger(__name__)
@@ -107,11 +107,11 @@ class SuccessOnGoal(gym.Wrapper):
 
 
 def transfer_wrap(
-    env: gym.Env, noise_std: float, inner: Callable[[gym.Env], gym.Env] | None
+    env: gym.Env, noise_std: float,
+    inner: Callable[[gym.Env], gym.Env] | Mapping[str, Any] | None,
 ) -> gym.Env:
     """noise -> success -> the method's own wrapper (e.g. the SEMDP one), innermost first."""
-    env = SuccessOnGoal(ObservationNoise(env, noise_std))
-    return inner(env) if inner is not None else env
+    return apply_wrapper(SuccessOnGoal(ObservationNoise(env, noise_std)), inner)
 
 
 def transfer_env_config(
@@ -132,7 +132,7 @@ def transfer_env_config(
                      "max_episode_steps": int(episode_steps)}
     inner = env_cfg.get("eval_wrapper") or env_cfg.get("wrapper")
     out["eval_wrapper"] = functools.partial(transfer_wrap, noise_std=float(noise_std),
-                                            inner=_resolve_wrapper(inner))
+                                            inner=plain_wrapper(inner))
     return out
 
 
