@@ -23,7 +23,8 @@ from semdp.embedded.follower import (
     follower_observation,
 )
 from semdp.embedded.follower_eval import evaluate_reaching, point_to_polyline_distance
-from semdp.embedded.goal_reaching import GoalReachingEnv, export_follower, load_follower_actor
+from semdp.embedded.follower_weights import export_follower, load_follower_actor
+from semdp.embedded.goal_reaching import GoalReachingEnv
 
 
 def test_goal_reaching_reward_is_eq_3_9_on_a_hand_computed_case() -> None:

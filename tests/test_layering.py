@@ -144,9 +144,7 @@ def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     [
         "solvers",
         "sims",
-        # semdp.embedded.follower <-> goal_reaching (a function-local import) is being removed
-        # by the config refactoring; strict=False so the test passes once it is gone
-        pytest.param("semdp", marks=pytest.mark.xfail(strict=False, reason="follower cycle")),
+        "semdp",
     ],
 )
 def test_no_import_cycles(package: str) -> None:

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from semdp.embedded.goal_reaching import export_follower
+from semdp.embedded.follower_weights import export_follower
 
 
 def actor_mean_state(actor_state: dict[str, Any], act_dim: int) -> tuple[dict[str, Any], list]:

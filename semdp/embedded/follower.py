@@ -17,7 +17,9 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+import torch
 
+from semdp.embedded.follower_weights import load_follower_actor
 from semdp.embedded.tracking import world_to_ego
 
 #: Committed follower weights (``point.pt``, ``car.pt``; see ``weights/README.md``).
@@ -74,7 +76,7 @@ def follower_observation(
 class PolicyFollower:
     """A trained goal-reaching policy (deterministic mean action), loaded from a weights file.
 
-    The file is written by :func:`semdp.embedded.goal_reaching.export_follower` and holds a small
+    The file is written by :func:`semdp.embedded.follower_weights.export_follower` and holds a small
     MLP (``torch.save`` of a dict with ``state_dict``, ``obs_dim``, ``act_dim``, ``hidden_sizes``,
     ``sensor_slices`` and ``obs_mean``/``obs_std`` if the policy normalised its input).
 
@@ -86,8 +88,6 @@ class PolicyFollower:
     """
 
     def __init__(self, weights: str | Path, sensor_slices: list[str] | None = None) -> None:
-
-        from semdp.embedded.goal_reaching import load_follower_actor
 
         weights = Path(weights)
         if not weights.is_absolute() and not weights.exists():
@@ -114,8 +114,6 @@ class PolicyFollower:
         self, obs: np.ndarray, robot_position: np.ndarray, robot_heading: float, target: np.ndarray
     ) -> np.ndarray:
         """Deterministic action of the goal-conditioned policy for ``target``."""
-        import torch
-
         if self._slices is None:
             raise RuntimeError("PolicyFollower.bind(env.obs_slices) must be called first")
         sensors = np.concatenate([obs[s] for s in self._slices])
