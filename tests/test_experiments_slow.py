@@ -1,12 +1,12 @@
 """End to end: every experiment preset at the `ci` budget, then `semdp-report` on its sweep
-directory (issue 8 acceptance); the submitit and Ray launchers on a 2-job `ci` sweep.
+directory (issue 8 acceptance). The launcher sweeps (submitit, Ray) are in the default suite:
+tests/test_launchers.py.
 
     python -m pytest -m slow tests/test_experiments_slow.py -q
 """
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -100,25 +100,3 @@ def test_preset_ci_sweep_and_report(name: str, tmp_path: Path) -> None:
         ours = [json.loads(p.read_text()) for p in sweep.rglob("metrics.json")]
         points = [m["tradeoff"] for m in ours if m.get("label") == "Ours"]
         assert points and [p["clearance"] for p in points[0]] == [0.1, 0.25, 0.5, 0.75]
-
-
-def _two_job_sweep(tmp_path: Path, *launcher: str) -> None:
-    sweep = tmp_path / "sweep"
-    _train("experiment=sp_driving", "budget=ci", "algo=ppo_lag", "env=drive_circle",
-           f"hydra.sweep.dir={sweep}", *launcher)
-    runs = sorted(p.parent.name for p in sweep.rglob("metrics.json"))
-    assert runs == ["0_ppo_lag_drive_circle_v2.0_s0", "1_ppo_lag_drive_circle_v6.0_s0"]
-    for path in sweep.rglob("metrics.json"):
-        assert json.loads(path.read_text())["status"] == "completed"
-
-
-@pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is None,
-                    reason="optional extra not installed: pip install -e '.[slurm]'")
-def test_submitit_local_launcher_runs_a_two_job_ci_sweep(tmp_path: Path) -> None:
-    _two_job_sweep(tmp_path, "hydra/launcher=submitit_local", "hydra.launcher.timeout_min=20")
-
-
-@pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is None,
-                    reason="optional extra not installed: pip install -e '.[ray]'")
-def test_ray_launcher_runs_a_two_job_ci_sweep_on_a_local_ray(tmp_path: Path) -> None:
-    _two_job_sweep(tmp_path, "hydra/launcher=ray", "+hydra.launcher.ray.init.num_cpus=2")
