@@ -31,6 +31,7 @@ from semdp.common.logger import write_metrics
 from semdp.common.seeding import seed_everything
 from semdp.envs import make_vec_env
 from semdp.paths import CONF_DIR
+from semdp.run_logging import progress_logging
 
 logger = logging.getLogger(__name__)
 
@@ -120,12 +121,13 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
             algo.load_checkpoint(run_dir / "checkpoints" / CHECKPOINT_NAME)
             logger.info("resuming %s at epoch %d (%d env steps)", run_dir, algo.epoch,
                         algo.env_steps)
-        metrics = algo.learn(
-            total_steps=int(cfg.total_steps), run_dir=run_dir,
-            eval_every=int(cfg.eval_every), eval_episodes=int(cfg.eval_episodes),
-            final_eval_episodes=int(cfg.final_eval_episodes),
-            checkpoint_every=int(cfg.checkpoint_every), resume=bool(resume), metadata=meta,
-        )
+        with progress_logging(cfg, algo):  # SEMDP time split, TensorBoard mirror
+            metrics = algo.learn(
+                total_steps=int(cfg.total_steps), run_dir=run_dir,
+                eval_every=int(cfg.eval_every), eval_episodes=int(cfg.eval_episodes),
+                final_eval_episodes=int(cfg.final_eval_episodes),
+                checkpoint_every=int(cfg.checkpoint_every), resume=bool(resume), metadata=meta,
+            )
         # Optional post-training hook (e.g. the SEMDP timing split, curves and evaluation GIF):
         # `post_train` (top level or in the env config), a `_partial_` callable
         # hook(algo=, cfg=, run_dir=, metrics=) -> metrics.
