@@ -12,6 +12,7 @@ The layout (one job per module) is described in solvers/README.md, "Code layout"
 from __future__ import annotations
 
 from solvers.planner.batching import plan_batch, start_batch_workers
+from solvers.planner.compare import Comparison, ComparisonRow, compare, compare_backends
 from solvers.planner.planner import SafeTrajectoryPlanner
 from solvers.planner.protocol import Planner
 from solvers.planner.result import PlanResult
@@ -20,11 +21,15 @@ from solvers.planner.suite import PlanningProblem, random_problems
 
 __all__ = [
     "BACKENDS",
+    "Comparison",
+    "ComparisonRow",
     "PlanResult",
     "Planner",
     "PlannerSettings",
     "PlanningProblem",
     "SafeTrajectoryPlanner",
+    "compare",
+    "compare_backends",
     "plan_batch",
     "random_problems",
     "start_batch_workers",
