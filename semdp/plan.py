@@ -1,29 +1,50 @@
-"""``semdp-plan``: plan one trajectory, print its certificate and draw it (SPEC §0, §2.2).
+"""``semdp-plan``: plan one problem, print the certificate and draw it (thesis §3.5.2).
 
-Example::
+Examples::
 
     semdp-plan start=[0,0] subgoal=[2,1] obstacles=[[1,0.3],[0.4,-0.8]] backend=ipopt
+    semdp-plan backends=[ipopt,lm,lm_adaptive,scp] start=[0,0] subgoal=[2,1] \\
+        obstacles=[[1,0.3],[0.4,-0.8]]
 
-Writes ``plan.png`` (obstacles with their eps' circles, waypoints, subgoal, certificate) and
-``plan.json`` (the result) into the Hydra run directory and prints their paths.
+One planner (``planner=<conf/planner name>``, ``backend=`` overriding its backend): writes
+``plan.png`` (obstacles with their eps' circles, waypoints, subgoal, certificate) and
+``plan.json`` (the result). Compare mode (``backends=[...]``, each a ``conf/planner`` name
+composed by Hydra, every ``planner.<key>=`` override applied to each): the same problem solved by
+every planner, written as ``compare.png`` (the plans overlaid), ``compare.json`` and
+``compare.csv`` (one row per planner), and the table printed. Everything goes into the Hydra run
+directory. Bad input ends the run with one line on stderr and exit status 1.
 """
 
 from __future__ import annotations
 
+import csv
 import json
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import hydra
 import numpy as np
+from hydra import compose, initialize_config_dir
+from hydra.core.global_hydra import GlobalHydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.errors import HydraException, InstantiationException
 from hydra.utils import instantiate
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from semdp.paths import CONF_DIR
-from solvers.planner import PlanResult, SafeTrajectoryPlanner
+from semdp.plan_plots import plot_comparison, plot_plan
+from solvers.planner import Comparison, Planner, PlanResult, compare
+from solvers.planner.compare import COLUMNS as COMPARE_COLUMNS
+from solvers.planner.problem import validate_obstacles
 
 FIGURE_NAME = "plan.png"
 RESULT_NAME = "plan.json"
+COMPARE_FIGURE = "compare.png"
+COMPARE_JSON = "compare.json"
+COMPARE_CSV = "compare.csv"
+#: The config group whose options ``backends=[...]`` names.
+PLANNER_GROUP = "planner"
 
 
 def result_to_dict(result: PlanResult) -> dict[str, object]:
@@ -39,75 +60,152 @@ def result_to_dict(result: PlanResult) -> dict[str, object]:
     return out
 
 
-def plot_plan(
-    result: PlanResult,
-    subgoal: np.ndarray,
-    obstacles: np.ndarray,
-    clearance: float,
-    path: Path,
-) -> None:
-    """Draw obstacles (radius filled, eps' + r dashed), waypoints, start, subgoal, certificate."""
-    import matplotlib
+def _obstacles(cfg: DictConfig) -> np.ndarray:
+    """``cfg.obstacles`` as an (m, 3) array ``[x, y, r]``; ValueError when malformed."""
+    value = cfg.get("obstacles")
+    if OmegaConf.is_config(value):
+        value = OmegaConf.to_container(value, resolve=True)
+    centres, radii = validate_obstacles(value if value else None)
+    return np.column_stack([centres, radii])
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle
 
-    fig, ax = plt.subplots(figsize=(6.4, 6.0))
-    for row in obstacles:
-        radius = float(row[2]) if len(row) > 2 else 0.0
-        if radius > 0:
-            ax.add_patch(Circle(row[:2], radius, color="tab:purple", alpha=0.6))
-        ax.add_patch(Circle(row[:2], clearance + radius, fill=False, ls="--", color="tab:purple"))
-        ax.plot(row[0], row[1], "x", color="tab:purple")
-    points = result.waypoints
-    ax.plot(points[:, 0], points[:, 1], "-o", ms=3, color="tab:green", label="waypoints")
-    ax.plot(*points[0], "o", ms=9, color="tab:red", label="start")
-    ax.plot(*subgoal, "*", ms=14, color="tab:orange", label="subgoal")
-    text = (
-        f"{result.backend}: {result.status}\n"
-        f"feasible={result.feasible} fallback={result.fallback} escape={result.escape_mode}\n"
-        f"min clearance: waypoints {result.min_clearance:.4f} m, "
-        f"continuous {result.min_clearance_continuous:.4f} m (eps'={clearance})\n"
-        f"||x_N - g||={np.sqrt(result.objective):.4f} m, {result.solve_time_s * 1e3:.1f} ms"
-    )
-    ax.text(0.01, 0.99, text, transform=ax.transAxes, va="top", fontsize=8,
-            bbox={"facecolor": "white", "alpha": 0.85})
-    everything = np.vstack([points, subgoal[None, :], *(o[None, :2] for o in obstacles)])
-    low = everything.min(axis=0) - clearance - 0.5
-    high = everything.max(axis=0) + clearance + 0.5
-    ax.set_xlim(low[0], high[0])
-    ax.set_ylim(low[1], high[1])
-    ax.set_aspect("equal")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+def _instantiate_planner(node: DictConfig, name: str, **overrides: Any) -> Planner:
+    """The planner of a composed ``conf/planner`` node; a bad setting is a one-line
+    ValueError naming the planner."""
+    label = f"planner {name}" if name else "planner"
+    try:
+        planner = instantiate(node, **overrides)
+    except InstantiationException as error:  # the constructor's ValueError, without Hydra's frame
+        if isinstance(error.__cause__, ValueError):
+            raise ValueError(f"{label}: {error.__cause__}") from None
+        raise ValueError(f"{label}: {str(error).splitlines()[0]}") from None
+    if not isinstance(planner, Planner):
+        raise ValueError(f"{label} is not a planner (no plan()): {planner!r}")
+    return planner
 
 
 def run(cfg: DictConfig, output_dir: Path) -> PlanResult:
     """Build the planner from ``cfg.planner`` (``cfg.backend`` overrides its backend) and plan."""
     overrides = {} if cfg.get("backend") is None else {"backend": str(cfg.backend)}
-    planner: SafeTrajectoryPlanner = instantiate(cfg.planner, **overrides)
-    obstacles = OmegaConf.to_container(cfg.obstacles, resolve=True) if cfg.obstacles else []
+    obstacles = _obstacles(cfg)
+    planner = _instantiate_planner(cfg.planner, "", **overrides)
     result = planner.plan(list(cfg.start), list(cfg.subgoal), obstacles)
     output_dir.mkdir(parents=True, exist_ok=True)
     (output_dir / RESULT_NAME).write_text(json.dumps(result_to_dict(result), indent=2) + "\n")
     if cfg.get("plot", True):
-        array = np.asarray(obstacles, dtype=float).reshape(-1, np.shape(obstacles)[1]
-                                                           if len(obstacles) else 2)
-        plot_plan(result, np.asarray(cfg.subgoal, dtype=float), array, planner.clearance,
+        plot_plan(result, np.asarray(cfg.subgoal, dtype=float), obstacles, planner.clearance,
                   output_dir / FIGURE_NAME)
     return result
+
+
+def planner_overrides(task_overrides: Sequence[str]) -> list[str]:
+    """The command-line overrides of planner keys, without the ``planner.`` prefix
+    (``planner.continuous=true`` -> ``continuous=true``), which compare mode applies to every
+    planner; the group choice ``planner=...`` is not one of them."""
+    prefix = f"{PLANNER_GROUP}."
+    return [o[len(prefix):] for o in task_overrides if o.startswith(prefix)]
+
+
+def compose_planner(name: str, overrides: Sequence[str] = ()) -> DictConfig:
+    """The ``conf/planner/<name>.yaml`` node composed by Hydra with ``overrides`` of its keys
+    (``continuous=true``), inside the running ``semdp-plan`` app (its config search path) or,
+    from Python, from ``conf/``.
+
+    Raises:
+        ValueError: ``name`` is not a ``conf/planner`` option (the message lists them), or an
+            override does not apply to it.
+    """
+    hydra_instance = GlobalHydra.instance()
+    if hydra_instance.is_initialized():
+        return _compose_planner(hydra_instance, name, overrides)
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        return _compose_planner(GlobalHydra.instance(), name, overrides)
+
+
+def _compose_planner(
+    hydra_instance: GlobalHydra, name: str, overrides: Sequence[str]
+) -> DictConfig:
+    options = sorted(o for o in hydra_instance.config_loader().get_group_options(PLANNER_GROUP)
+                     if not o.startswith("_"))
+    if name not in options:
+        raise ValueError(f"unknown planner {name!r} in backends; options: {options}")
+    try:
+        cfg = compose(config_name=f"{PLANNER_GROUP}/{name}",
+                      overrides=[f"{PLANNER_GROUP}.{item}" for item in overrides])
+    except HydraException as error:  # an override that does not apply to this planner
+        reason = str(error).splitlines()[0]
+        if error.__cause__ is not None:
+            reason += f" ({str(error.__cause__).splitlines()[0]})"
+        raise ValueError(f"planner {name}: {reason}") from None
+    node = cfg[PLANNER_GROUP]
+    assert isinstance(node, DictConfig)
+    return node
+
+
+def _backend_names(value: object) -> list[str]:
+    if isinstance(value, str):
+        value = [value]
+    if isinstance(value, ListConfig):
+        value = OmegaConf.to_container(value, resolve=True)
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise ValueError(
+            f"backends must be a non-empty list of conf/planner names, e.g. backends=[ipopt,lm], "
+            f"got {value!r}"
+        )
+    if len(set(value)) != len(value):
+        raise ValueError(f"backends lists a planner twice: {value}")
+    return list(value)
+
+
+def run_compare(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = ()) -> Comparison:
+    """Compose and build every planner of ``cfg.backends``, solve the problem with each, and
+    write ``compare.json``, ``compare.csv`` and (with ``cfg.plot``) ``compare.png``.
+
+    Args:
+        cfg: The composed ``conf/plan.yaml`` (``backends``, ``start``, ``subgoal``,
+            ``obstacles``, ``repeats``, ``plot``).
+        output_dir: Where the files go (created).
+        overrides: ``<key>=<value>`` overrides of planner keys applied to every planner.
+
+    Raises:
+        ValueError: A bad backend list, an unknown planner, a bad planner setting or override,
+            or malformed start, subgoal or obstacles.
+    """
+    if cfg.get("backend") is not None:
+        raise ValueError("give either backend= (one planner) or backends=[...] (compare), not both")
+    names = _backend_names(cfg.backends)
+    obstacles = _obstacles(cfg)
+    planners = {name: _instantiate_planner(compose_planner(name, overrides), name)
+                for name in names}
+    comparison = compare(list(cfg.start), list(cfg.subgoal), obstacles, planners=planners,
+                         repeats=int(cfg.get("repeats", 3)))
+    output_dir.mkdir(parents=True, exist_ok=True)
+    payload = {**comparison.to_dict(), "planner_overrides": list(overrides)}
+    (output_dir / COMPARE_JSON).write_text(json.dumps(payload, indent=2) + "\n")
+    with open(output_dir / COMPARE_CSV, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(COMPARE_COLUMNS))
+        writer.writeheader()
+        writer.writerows(comparison.records())
+    if cfg.get("plot", True):
+        plot_comparison(comparison, output_dir / COMPARE_FIGURE)
+    return comparison
 
 
 @hydra.main(config_path=str(CONF_DIR), config_name="plan", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     """Hydra entry point of ``semdp-plan``."""
     output_dir = Path(HydraConfig.get().runtime.output_dir)
+    if cfg.get("backends") is not None:
+        overrides = planner_overrides(HydraConfig.get().overrides.task)
+        try:
+            comparison = run_compare(cfg, output_dir, overrides)
+        except ValueError as error:
+            raise SystemExit(f"semdp-plan: {error}") from None
+        print(comparison.table())
+        names = [COMPARE_JSON, COMPARE_CSV, *([COMPARE_FIGURE] if cfg.get("plot", True) else [])]
+        for name in names:
+            print(f"wrote {output_dir / name}")
+        return
     try:
         result = run(cfg, output_dir)
     except ValueError as error:

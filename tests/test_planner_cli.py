@@ -1,13 +1,19 @@
-"""``semdp-plan`` and ``semdp-bench planner`` end to end (issue 3 deliverables 7-8)."""
+"""``semdp-plan`` (one planner and compare mode) and ``semdp-bench planner`` end to end."""
 
 from __future__ import annotations
 
+import csv
 import json
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+from omegaconf import OmegaConf
+
+from semdp import plan as plan_app
 from semdp.benchmarks import planner as planner_bench
+from solvers.planner.compare import COLUMNS
 
 
 def test_plan_cli_writes_png_and_result(tmp_path: Path) -> None:
@@ -45,3 +51,74 @@ def test_planner_benchmark_writes_table_and_csv(tmp_path: Path, capsys) -> None:
     assert len((tmp_path / "planner_results.csv").read_text().splitlines()) == 1 + 4 * 6
     batch = (tmp_path / "planner_batch.csv").read_text().splitlines()
     assert batch[0].startswith("variant,batch,workers,helpers,loop_ms,batch_ms") and len(batch) == 3
+
+
+def test_plan_cli_compare_mode_writes_one_figure_and_one_table(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    names = ["ipopt", "lm", "lm_adaptive", "scp"]
+    completed = subprocess.run(
+        [sys.executable, "-m", "semdp.plan", f"backends=[{','.join(names)}]", "start=[0,0]",
+         "subgoal=[2,1]", "obstacles=[[1,0.3],[0.4,-0.8]]", "repeats=1",
+         f"hydra.run.dir={run_dir}"],
+        capture_output=True, text=True, check=True, timeout=180,
+    )
+    for name in names:
+        assert f"| {name} |" in completed.stdout
+    for output in ("compare.png", "compare.json", "compare.csv"):
+        assert f"wrote {run_dir / output}" in completed.stdout
+    assert (run_dir / "compare.png").stat().st_size > 10_000
+    payload = json.loads((run_dir / "compare.json").read_text())
+    assert [row["name"] for row in payload["rows"]] == names
+    assert payload["obstacles"] == [[1.0, 0.3, 0.0], [0.4, -0.8, 0.0]]
+    with open(run_dir / "compare.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert list(rows[0]) == list(COLUMNS) and [r["name"] for r in rows] == names
+    for row in rows:
+        assert row["fallback"] == "False" and row["reached_subgoal"] == "True"
+        assert float(row["min_clearance"]) >= 0.5 - 1e-9
+    assert rows[2]["backend"] == "lm"  # lm_adaptive is the LM backend with adaptive lambda
+
+
+def test_plan_compare_applies_planner_overrides_to_every_planner(tmp_path: Path) -> None:
+    cfg = OmegaConf.create({"backends": ["ipopt", "scp"], "backend": None, "start": [0, 0],
+                            "subgoal": [2.5, 0], "obstacles": [[1.2, 0.0]], "repeats": 1,
+                            "plot": False})
+    comparison = plan_app.run_compare(cfg, tmp_path, ["continuous=true"])
+    for row in comparison.rows:
+        assert row.min_clearance_continuous >= 0.5 - 1e-9 and not row.fallback
+    assert (tmp_path / "compare.csv").is_file() and not (tmp_path / "compare.png").exists()
+    assert plan_app.planner_overrides(
+        ["planner=lm", "planner.continuous=true", "start=[0,0]", "planner.clearance=0.6"]
+    ) == ["continuous=true", "clearance=0.6"]
+
+
+def test_plan_cli_compare_unknown_backend_fails_with_one_line(tmp_path: Path) -> None:
+    completed = subprocess.run(
+        [sys.executable, "-m", "semdp.plan", "backends=[ipopt,teleport]",
+         f"hydra.run.dir={tmp_path}"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert completed.returncode == 1
+    lines = completed.stderr.strip().splitlines()
+    assert len(lines) == 1 and "unknown planner 'teleport'" in lines[0], completed.stderr
+    assert "'lm_adaptive'" in lines[0]  # the options are listed
+    assert not (tmp_path / "compare.json").exists()
+
+
+def test_plan_cli_compare_malformed_obstacles_fail_with_one_line(tmp_path: Path) -> None:
+    completed = subprocess.run(
+        [sys.executable, "-m", "semdp.plan", "backends=[lm,scp]", "obstacles=[[1,0.3],[0.4]]",
+         f"hydra.run.dir={tmp_path}"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert completed.returncode == 1
+    lines = completed.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("semdp-plan: obstacles must be"), lines
+
+
+def test_plan_bad_planner_setting_is_one_value_error(tmp_path: Path) -> None:
+    node = plan_app.compose_planner("lm", ["clearance=-1"])
+    cfg = OmegaConf.create({"planner": node, "backend": None, "start": [0, 0],
+                            "subgoal": [1, 0], "obstacles": [], "plot": False})
+    with pytest.raises(ValueError, match=r"^planner: clearance must be a finite number >= 0"):
+        plan_app.run(cfg, tmp_path)
