@@ -47,6 +47,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from sims.driving.render import render_top_down
 from sims.driving.tracks import CircleTrack, RandomPathTrack, wrap_angle
 from sims.driving.vehicle import BicycleModel, VehicleParams
 
@@ -292,8 +293,6 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
         """Top-down RGB image of the road, the car (heading marked) and its recent path."""
         if self.render_mode is None:
             return None
-        from sims.driving.render import render_top_down
-
         return render_top_down(self)
 
 

@@ -1,17 +1,40 @@
 """Top-down ``rgb_array`` rendering of the driving tasks (road, car with heading, recent path).
 
-PIL is imported lazily here so that importing :mod:`sims` stays light.
+PIL is imported lazily here so that importing :mod:`sims` stays light. The drawing reads the
+scene through :class:`DrivingScene` (the attributes a :class:`~sims.driving.env.DrivingEnv`
+has), so this module does not import the env.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from sims.driving.env import DrivingEnv
+from sims.driving.tracks import CircleTrack, RandomPathTrack
+from sims.driving.vehicle import BicycleModel
+
+
+class DrivingScene(Protocol):
+    """What :func:`render_top_down` reads: the track, the road, the car and its trail."""
+
+    track: CircleTrack | RandomPathTrack
+    model: BicycleModel
+    road_width: float
+    half_width: float
+    termination_distance: float
+    trail: list[tuple[float, float]]
+
+    @property
+    def vehicle_state(self) -> tuple[float, float, float, float, float, float]:
+        """``(x, y, psi, v_x, v_y, r)``."""
+        ...
+
+    @property
+    def frenet(self) -> tuple[float, float, float, float]:
+        """``(s, d, path_heading, curvature)``."""
+        ...
 
 IMAGE_SIZE = 400
 TRAJECTORY_VIEW_HALF_EXTENT = 4.0
@@ -23,7 +46,7 @@ CAR_BODY = (220, 50, 50)
 CAR_NOSE = (255, 255, 255)
 
 
-def render_top_down(env: DrivingEnv, size: int = IMAGE_SIZE) -> np.ndarray:
+def render_top_down(env: DrivingScene, size: int = IMAGE_SIZE) -> np.ndarray:
     """Draw ``env`` from above.
 
     The Circle view is fixed on the whole circle; the Trajectory view follows the car
@@ -37,8 +60,6 @@ def render_top_down(env: DrivingEnv, size: int = IMAGE_SIZE) -> np.ndarray:
         ``uint8`` array of shape ``(size, size, 3)``.
     """
     from PIL import Image, ImageDraw
-
-    from sims.driving.tracks import CircleTrack
 
     x, y, psi, _, _, _ = env.vehicle_state
     track = env.track

@@ -1,21 +1,51 @@
-"""Top-down ``rgb_array`` frames of a :class:`~sims.safety_gym.env.SafetyGymEnv` (PIL, lazy).
+"""Top-down ``rgb_array`` frames of a Safety Gym scene (PIL, imported lazily).
 
 Colours: hazards blue discs, vases teal squares, pillars dark-blue discs, push box yellow,
 goal green disc (translucent ring), buttons orange (the goal button ringed green), gremlins
 purple squares, the robot red with a white heading line from its root; a caller's overlay
 (planned waypoints and subgoal) is drawn in black/magenta on top.
+
+The drawing reads the scene through :class:`TopDownScene` (the attributes a
+:class:`~sims.safety_gym.env.SafetyGymEnv` has), so this module does not import the env.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 import pymunk
 
-if TYPE_CHECKING:  # pragma: no cover
-    from sims.safety_gym.env import SafetyGymEnv
+from sims.safety_gym.config import LevelSpec
+
+
+class TopDownScene(Protocol):
+    """What :func:`render_topdown` reads: object positions and sizes, bodies, the robot pose."""
+
+    layout_spec: LevelSpec
+    task: str
+    hazards: list[tuple[float, float]]
+    hazard_radius: float
+    pillars: list[tuple[float, float]]
+    pillar_radius: float
+    buttons: list[tuple[float, float]]
+    goal_button: int
+    goal_x: float
+    goal_y: float
+    goal_size: float
+    vase_bodies: list[pymunk.Body]
+    gremlin_bodies: list[pymunk.Body]
+    box_body: pymunk.Body | None
+    body: pymunk.Body
+    robot_scale: float
+
+    @property
+    def robot_forward_heading(self) -> float:
+        """Yaw of the driving direction (rad)."""
+        ...
+
 
 COLOURS = {
     "floor": (235, 235, 230),
@@ -35,8 +65,20 @@ COLOURS = {
 }
 
 
-def render_topdown(env: SafetyGymEnv, size: int = 256) -> np.ndarray:
-    """Draw the current state; the view covers the placement extents plus 1 m of margin."""
+def render_topdown(
+    env: TopDownScene,
+    size: int = 256,
+    waypoints: np.ndarray | None = None,
+    subgoal: Sequence[float] | None = None,
+) -> np.ndarray:
+    """Draw the current state; the view covers the placement extents plus 1 m of margin.
+
+    Args:
+        env: the scene (a :class:`~sims.safety_gym.env.SafetyGymEnv`).
+        size: frame side in pixels.
+        waypoints: optional planned path ``(n, 2)``, drawn in black.
+        subgoal: optional subgoal ``(x, y)``, drawn as a magenta cross.
+    """
     from PIL import Image, ImageDraw
 
     xmin, ymin, xmax, ymax = env.layout_spec.extents
@@ -94,14 +136,14 @@ def render_topdown(env: SafetyGymEnv, size: int = 256) -> np.ndarray:
               fill=COLOURS["heading"], width=max(1, size // 128))  # fmt: skip
     disc(draw, rx, ry, 0.025, COLOURS["heading"])
 
-    if env._overlay_waypoints is not None and len(env._overlay_waypoints):
-        pts = [px(float(x), float(y)) for x, y in env._overlay_waypoints]
+    if waypoints is not None and len(waypoints):
+        pts = [px(float(x), float(y)) for x, y in waypoints]
         if len(pts) > 1:
             draw.line(pts, fill=COLOURS["path"], width=max(1, size // 200))
         for u, v in pts:
             draw.ellipse([u - 1.5, v - 1.5, u + 1.5, v + 1.5], fill=COLOURS["path"])
-    if env._overlay_subgoal is not None:
-        u, v = px(*map(float, env._overlay_subgoal))
+    if subgoal is not None:
+        u, v = px(*map(float, subgoal))
         r = max(3.0, 0.06 * scale)
         draw.line([u - r, v - r, u + r, v + r], fill=COLOURS["subgoal"], width=2)
         draw.line([u - r, v + r, u + r, v - r], fill=COLOURS["subgoal"], width=2)
