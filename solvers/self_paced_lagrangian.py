@@ -1,4 +1,4 @@
-"""Self-paced Lagrangian on the toy problem of thesis §2.5.1 (Eq. 2.11, Fig. 2.1; SPEC §2.1).
+"""Self-paced Lagrangian on the toy problem of thesis §2.5.1 (Eq. 2.11, Fig. 2.1).
 
 The problem::
 
@@ -35,14 +35,10 @@ import casadi as cs
 import numpy as np
 import numpy.typing as npt
 
+from solvers.threshold_schedule import THRESHOLD_RULES, ThresholdSchedule, threshold_schedule
+
 logger = logging.getLogger(__name__)
 
-#: Readings of the threshold rule. ``"tighten"`` (§2.4.1): start at the loosest threshold and move
-#: to the next tighter one once the current stage is solved (its KKT conditions hold within
-#: ``stationarity_tol``). ``"literal"`` (Alg. 1 / Eq. 2.9): at every multiplier update use the
-#: largest threshold not above the current cost, ``d_i = max{d in D u {0} : d <= c(x)}`` (the target
-#: 0 when the cost is below every threshold).
-THRESHOLD_RULES: tuple[str, ...] = ("tighten", "literal")
 #: Multiplier updates. ``"sgd"``: Eq. 2.10, ``lam <- max(0, lam + lr_lambda (c(x) - d_i))``.
 #: ``"adam"``: Adam ascent on ``lam`` with learning rate ``lr_lambda``, projected onto ``lam >= 0``.
 LAMBDA_OPTIMIZERS: tuple[str, ...] = ("sgd", "adam")
@@ -82,37 +78,6 @@ def _check_choice(name: str, value: object, options: tuple[str, ...]) -> str:
     if value not in options:
         raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
     return str(value)
-
-
-def threshold_schedule(initial_exponent: int, num_thresholds: int) -> tuple[float, ...]:
-    """Thresholds of Eq. 2.12, loosest first, followed by the target 0.
-
-    Args:
-        initial_exponent: N in ``d_i = 2^(N - i)``.
-        num_thresholds: M, the last index (so the curriculum has M + 1 thresholds before 0).
-
-    Returns:
-        ``(2^N, 2^(N-1), ..., 2^(N-M), 0.0)``.
-
-    Raises:
-        ValueError: if N is not an integer or M is not an integer >= 0.
-    """
-    if isinstance(initial_exponent, bool) or not isinstance(initial_exponent, numbers.Integral):
-        raise ValueError(f"initial_exponent must be an integer, got {initial_exponent!r}")
-    num_thresholds = _check_int("num_thresholds", num_thresholds, 0)
-    return (*(2.0 ** (int(initial_exponent) - i) for i in range(num_thresholds + 1)), 0.0)
-
-
-def literal_threshold_index(cost: float, schedule: tuple[float, ...]) -> int:
-    """Eq. 2.9 read literally: index of the largest threshold not above ``cost``.
-
-    ``schedule`` is sorted loosest first and ends with the target; when ``cost`` is below every
-    threshold (a strictly feasible point) the target (last index) is returned.
-    """
-    for index, threshold in enumerate(schedule):
-        if threshold <= cost:
-            return index
-    return len(schedule) - 1
 
 
 class _Adam:
@@ -258,7 +223,7 @@ class ToyProblem:
 
 
 class SelfPacedLagrangianToy:
-    """Plain vs self-paced Lagrangian on Eq. 2.11, plus the IPOPT references (SPEC §2.1).
+    """Plain vs self-paced Lagrangian on Eq. 2.11, plus the IPOPT references.
 
     Config keys in ``conf/toy.yaml`` equal these argument names.
 
@@ -367,25 +332,24 @@ class SelfPacedLagrangianToy:
         lam = self.lambda_init
         x_optimizer = _Adam(self.lr_x, self.adam_beta1, self.adam_beta2)
         lambda_optimizer = _Adam(self.lr_lambda, self.adam_beta1, self.adam_beta2)
-        stage = 0
-        threshold = schedule[0] if rule == "tighten" else schedule[-1]
+        curriculum = ThresholdSchedule(
+            schedule, rule, index=0 if rule == "tighten" else len(schedule) - 1
+        )
+        threshold = curriculum.current
         f, c, df, dc = self.problem.evaluate(x)
         history = {"x": [x], "f": [f], "c": [c], "lam": [lam], "d": [threshold]}
         for step in range(self.n_iterations):
             lr_scale = self.lr_decay ** (step / self.n_iterations)
             if step % self.lambda_update_every == 0:
-                if rule == "literal":
-                    threshold = schedule[literal_threshold_index(c, schedule)]
-                else:
-                    stage_solved = (
-                        c <= threshold
-                        and abs(df + lam * dc) <= self.stationarity_tol
-                        and abs(lam * (c - threshold)) <= self.stationarity_tol
-                    )
-                    if stage_solved and stage < len(schedule) - 1:
-                        stage += 1
-                        threshold = schedule[stage]
-                        logger.debug("step %d: threshold tightened to %g", step, threshold)
+                # "tighten": a stage is solved when its KKT conditions hold within the tolerance
+                stage_solved = (
+                    c <= threshold
+                    and abs(df + lam * dc) <= self.stationarity_tol
+                    and abs(lam * (c - threshold)) <= self.stationarity_tol
+                )
+                previous, threshold = threshold, curriculum.select(c, stage_solved)
+                if rule == "tighten" and threshold != previous:
+                    logger.debug("step %d: threshold tightened to %g", step, threshold)
                 violation = c - threshold
                 if self.lambda_optimizer == "sgd":  # Eq. 2.10
                     lam = max(0.0, lam + self.lr_lambda * violation)

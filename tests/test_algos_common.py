@@ -144,6 +144,15 @@ def test_self_paced_thresholds_drop_values_below_target_and_reject_bad_rule() ->
         SelfPacedThresholds(target=1.0, rule="loosen")
 
 
+def test_self_paced_thresholds_use_the_shared_solvers_schedule() -> None:
+    """One implementation of Eqs. 2.8-2.12 for the toy problem and SP-PPO-Lag."""
+    from solvers.threshold_schedule import ThresholdSchedule, threshold_schedule
+
+    sched = SelfPacedThresholds(target=25.0)
+    assert isinstance(sched, ThresholdSchedule)
+    assert tuple(sched.thresholds) == threshold_schedule(8, 3, target=25.0)
+
+
 def test_combined_advantage_is_lagrangian_rescaled() -> None:
     a_r, a_c = torch.tensor([1.0, -2.0]), torch.tensor([3.0, 1.0])
     torch.testing.assert_close(combined_advantage(a_r, a_c, 0.0), a_r)

@@ -13,12 +13,15 @@ from solvers.self_paced_lagrangian import (
     LOCAL_OPTIMUM_VALUE,
     SelfPacedLagrangianToy,
     ToyProblem,
+)
+from solvers.threshold_schedule import (
+    ThresholdSchedule,
     literal_threshold_index,
     threshold_schedule,
 )
 
 PI = math.pi
-# A few starts per interval of issue 2: the wrong component [-5pi/2, -3pi/2], the component right
+# A few starts per interval of Fig. 2.1's discussion (§2.5.1): the wrong component [-5pi/2, -3pi/2], the component right
 # of 3pi/2 ([3pi/2 + 0.1, 5pi/2]) and the optimum's own component [-pi/2, pi/2].
 WRONG_COMPONENT_STARTS = (-7.6, -6.2, -5.0)
 OTHER_STARTS = (3 * PI / 2 + 0.1, 7.3, -PI / 2 + 0.05, 0.9)
@@ -194,3 +197,24 @@ def test_acceptance_grid_of_20_starts(toy: SelfPacedLagrangianToy) -> None:
             _assert_global(result.f, result.c)
         if x0 <= -3 * PI / 2:
             assert toy.lagrangian(x0).f == pytest.approx(LOCAL_OPTIMUM_VALUE, abs=1e-3)
+
+
+def test_threshold_schedule_drops_values_at_or_below_the_target_and_keeps_it_last() -> None:
+    assert threshold_schedule(8, 3, target=25.0) == (256.0, 128.0, 64.0, 32.0, 25.0)
+    assert threshold_schedule(6, 4, target=40.0) == (64.0, 40.0)
+    assert threshold_schedule(2, 1, target=0.0, base=3.0) == (9.0, 3.0, 0.0)
+    for bad in ({"target": -1.0}, {"target": math.inf}, {"base": 1.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            threshold_schedule(3, 2, **bad)
+
+
+
+def test_threshold_schedule_rules_step_as_documented() -> None:
+    sched = ThresholdSchedule(threshold_schedule(3, 2), "tighten")
+    seen = [sched.select(5.0, done) for done in (False, True, True, True, True)]
+    assert seen == [8.0, 4.0, 2.0, 0.0, 0.0]
+    literal = ThresholdSchedule(threshold_schedule(3, 2), "literal", index=3)
+    assert literal.current == 0.0
+    assert [literal.select(c, False) for c in (9.0, 3.0, 0.5)] == [8.0, 2.0, 0.0]
+    with pytest.raises(ValueError, match="rule"):
+        ThresholdSchedule((1.0, 0.0), "loosen")
