@@ -18,6 +18,7 @@ SUITES: dict[str, str] = {
     "sims": "semdp.benchmarks.sims",
     "driving": "semdp.benchmarks.driving",
     "train": "semdp.benchmarks.train",
+    "safety": "semdp.benchmarks.safety",
 }
 
 

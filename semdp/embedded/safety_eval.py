@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -97,8 +98,9 @@ def evaluate_safety(
     base = env.unwrapped
     clearance = float(getattr(env.planner, "clearance", 0.5))
     returns, costs, sources = [], [], Counter()
-    plans = fallbacks = escapes = 0
+    plans = fallbacks = escapes = rescues = 0
     violations: list[dict[str, Any]] = []
+    tic = time.perf_counter()
     for episode in range(episodes):
         obs, _ = env.reset(seed=seed + episode)
         ret = cost = 0.0
@@ -109,6 +111,7 @@ def evaluate_safety(
             plans += 1
             fallbacks += bool(info["plan_fallback"])
             escapes += bool(info["plan_escape"])
+            rescues += bool(info.get("plan_rescued", False))
             ret += reward
             if info["cost"] > 0:
                 source = classify_window(plan, true_obstacles, clearance)
@@ -132,6 +135,8 @@ def evaluate_safety(
         "plans": plans,
         "fallback_rate": fallbacks / max(plans, 1),
         "escape_rate": escapes / max(plans, 1),
+        "rescue_rate": rescues / max(plans, 1),
+        "high_level_steps_per_s": plans / max(time.perf_counter() - tic, 1e-9),
         "violations": violations[:50],
     }
 
@@ -165,8 +170,6 @@ def main(argv: list[str] | None = None) -> None:
     else:
         policy = load_sac_policy(args.run, stochastic=args.policy == "sac_sample")
         label = f"{args.policy} from {args.run}"
-    import time
-
     tic = time.perf_counter()
     out = evaluate_safety(env, policy, args.episodes, seed=args.seed)
     out["wall_time_s"] = time.perf_counter() - tic

@@ -1,0 +1,178 @@
+"""Contact-free one-step models of the replica's robots, for the low-level safety filter.
+
+Each model integrates the same calibrated actuator law as :mod:`sims.safety_gym.robots`
+substep by substep in Chipmunk's order (positions move with the velocities at the start of the
+substep, then the actuator force updates the velocities), without contacts: the Point's force
+along its heading with viscous damping and its yaw servo, the Car's first-order lag to the
+calibrated steady speed and yaw rate with decaying lateral slip, the Mass's velocity command.
+Each also names a *backup* action that brings the robot to rest and a few *escape* actions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import pymunk
+
+from sims.safety_gym.robots import CarRobot, MassRobot, PointRobot, Robot
+
+
+@dataclass
+class RobotState:
+    """Planar rigid-body state of the robot's root node (world frame)."""
+
+    x: float
+    y: float
+    vx: float
+    vy: float
+    yaw: float
+    w: float
+
+
+def body_extent(robot: Robot) -> float:
+    """Largest distance of the robot's collision outline from its root node (m)."""
+    body = pymunk.Body(1.0, 1.0)
+    extent = 0.0
+    for shape in robot.shapes(body):
+        if isinstance(shape, pymunk.Circle):
+            extent = max(extent, float(shape.offset.length + shape.radius))
+        else:
+            extent = max(extent, *(float(v.length) for v in shape.get_vertices()))
+    return extent
+
+
+class RobotModel(Protocol):
+    """What the safety filter needs of a robot."""
+
+    #: Env steps of the backup manoeuvre that bring the robot from top speed to rest.
+    horizon: int
+    #: Largest distance of the collision outline from the root node (m).
+    extent: float
+    #: Actions tried when neither the proposed nor the backup action is certified.
+    escapes: np.ndarray
+
+    def step(self, s: RobotState, action: np.ndarray) -> RobotState:
+        """The state one env step later under ``action`` (no contacts)."""
+        ...
+
+    def backup(self, s: RobotState) -> np.ndarray:
+        """The braking action in state ``s``."""
+        ...
+
+    def stopping_reach(self, s: RobotState) -> float:
+        """An upper bound of the distance the root covers over the backup manoeuvre (m)."""
+        ...
+
+
+class PointModel:
+    """Point robot: force ``gear * clip(a0)`` along the heading, damping, yaw-rate servo."""
+
+    def __init__(self) -> None:
+        r = PointRobot()
+        self.h, self.substeps = r.h, r.substeps
+        self.e = r.decay
+        self.gain_per_force = (1.0 - r.decay) / r.damping
+        self.gear, self.force_limit = r.gear, r.force_limit
+        self.yaw_actions, self.yaw_rates = r.yaw_actions, r.yaw_rates
+        self.tau = r.mass / r.damping  # time constant of the damped slide joints (s)
+        self.extent = body_extent(r)
+        self.horizon = 40  # 0.8 s: reverse thrust stops 1.5 m/s in about 0.4 s
+        self.escapes = np.array([(a0, a1) for a0 in (-1.0, 0.0, 1.0) for a1 in (-1.0, 0.0, 1.0)])
+
+    def step(self, s: RobotState, action: np.ndarray) -> RobotState:
+        force = self.gear * min(max(float(action[0]), -self.force_limit), self.force_limit)
+        gain = force * self.gain_per_force
+        a1 = float(action[1])
+        rate = math.copysign(float(np.interp(abs(a1), self.yaw_actions, self.yaw_rates)), a1)
+        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
+        for _ in range(self.substeps):
+            c, sn = math.cos(yaw), math.sin(yaw)
+            x += vx * self.h
+            y += vy * self.h
+            yaw += w * self.h
+            vx = gain * c + vx * self.e
+            vy = gain * sn + vy * self.e
+            w = rate
+        return RobotState(x, y, vx, vy, yaw, w)
+
+    def backup(self, s: RobotState) -> np.ndarray:
+        forward = s.vx * math.cos(s.yaw) + s.vy * math.sin(s.yaw)
+        return np.array([min(max(-0.2 * forward, -1.0), 1.0), 0.0])
+
+    def stopping_reach(self, s: RobotState) -> float:
+        return math.hypot(s.vx, s.vy) * self.tau + 0.05
+
+
+class CarModel:
+    """Car robot: lag to the calibrated steady speed / yaw rate of the two wheel torques."""
+
+    def __init__(self) -> None:
+        r = CarRobot()
+        self.h, self.substeps = r.h, r.substeps
+        self.e, self.lateral_decay = r.decay, r.lateral_decay
+        self.steady_state = r.steady_state
+        self.lag = -r.h / math.log(r.decay)  # first-order time constant (s)
+        self.extent = body_extent(r)
+        self.horizon = 30  # 0.6 s: about 4.6 time constants
+        self.escapes = np.array([(a0, a1) for a0 in (-1.0, 0.0, 1.0) for a1 in (-1.0, 0.0, 1.0)])
+
+    def step(self, s: RobotState, action: np.ndarray) -> RobotState:
+        speed, rate = self.steady_state(float(action[0]), float(action[1]))
+        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
+        for _ in range(self.substeps):
+            c, sn = math.cos(yaw), math.sin(yaw)
+            x += vx * self.h
+            y += vy * self.h
+            yaw += w * self.h
+            forward = vx * sn - vy * c  # driving direction: body -y
+            lateral = (vx * c + vy * sn) * self.lateral_decay
+            forward = speed + (forward - speed) * self.e
+            vx = forward * sn + lateral * c
+            vy = -forward * c + lateral * sn
+            w = w + (rate - w) * (1.0 - self.e)
+        return RobotState(x, y, vx, vy, yaw, w)
+
+    def backup(self, s: RobotState) -> np.ndarray:
+        return np.zeros(2)
+
+    def stopping_reach(self, s: RobotState) -> float:
+        return math.hypot(s.vx, s.vy) * self.lag * 1.5 + 0.05
+
+
+class MassModel:
+    """Mass robot: the action is a world-frame velocity command (``max_delta`` per step)."""
+
+    def __init__(self) -> None:
+        r = MassRobot()
+        self.h, self.substeps = r.h, r.substeps
+        self.scale = r.max_delta / r.dt
+        self.extent = body_extent(r)
+        self.horizon = 2
+        angles = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
+        self.escapes = np.vstack([np.stack([np.cos(angles), np.sin(angles)], axis=1),
+                                  np.zeros((1, 2))])
+
+    def step(self, s: RobotState, action: np.ndarray) -> RobotState:
+        vx = min(max(float(action[0]), -1.0), 1.0) * self.scale
+        vy = min(max(float(action[1]), -1.0), 1.0) * self.scale
+        # the first substep still moves with the previous velocity
+        x = s.x + (s.vx + vx * (self.substeps - 1)) * self.h
+        y = s.y + (s.vy + vy * (self.substeps - 1)) * self.h
+        return RobotState(x, y, vx, vy, s.yaw, 0.0)
+
+    def backup(self, s: RobotState) -> np.ndarray:
+        return np.zeros(2)
+
+    def stopping_reach(self, s: RobotState) -> float:
+        return self.scale * self.h * self.substeps * 2 + 0.05
+
+
+def robot_model(name: str) -> RobotModel:
+    """The model of robot ``name`` (``point``, ``car``, ``mass``)."""
+    models = {"point": PointModel, "car": CarModel, "mass": MassModel}
+    if name not in models:
+        raise ValueError(f"no safety-filter model for robot {name!r}; valid: {sorted(models)}")
+    return models[name]()

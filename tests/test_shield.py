@@ -1,0 +1,99 @@
+"""The low-level safety filter: its robot models against the simulator, and planted runs at a
+hazard where the unfiltered robot incurs cost and the filtered one does not."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semdp.envs  # noqa: F401  (registers the sims ids)
+from semdp.embedded.robot_models import RobotState, robot_model
+from semdp.embedded.shield import SafetyShield, ShieldedEnv
+
+ROBOTS = ("point", "car", "mass")
+
+
+def _state(base) -> RobotState:
+    b = base.body
+    return RobotState(b.position.x, b.position.y, b.velocity.x, b.velocity.y, b.angle,
+                      b.angular_velocity)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_robot_model_predicts_the_simulator_one_step_ahead(robot: str) -> None:
+    env = gym.make(f"sims/Safety{robot.capitalize()}Goal0-v0").unwrapped
+    env.reset(seed=1, options={"layout": {"agent": (0.0, 0.0), "agent_yaw": 0.0,
+                                           "goal": (500.0, 500.0)}})
+    model, rng = robot_model(robot), np.random.default_rng(0)
+    errors = []
+    for t in range(200):
+        state = _state(env)
+        action = rng.uniform(-1, 1, 2) if t % 20 < 15 else model.backup(state)
+        predicted = model.step(state, action)
+        env.step(action)
+        errors.append(math.hypot(predicted.x - env.body.position.x,
+                                 predicted.y - env.body.position.y))
+    assert max(errors) < 1e-8  # the same actuator law, no contacts in an empty arena
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_backup_manoeuvre_brings_the_robot_to_rest(robot: str) -> None:
+    model = robot_model(robot)
+    s = RobotState(0.0, 0.0, 1.2, 0.3, 0.4, 0.0)
+    for _ in range(model.horizon):
+        s = model.step(s, model.backup(s))
+    assert math.hypot(s.vx, s.vy) < 0.15 * math.hypot(1.2, 0.3)
+
+
+def _drive_at_hazard(robot: str, shield: SafetyShield | None) -> tuple[float, float]:
+    """Full speed straight at a hazard planted 1.2 m ahead; (cost steps, closest approach)."""
+    env = gym.make(f"sims/Safety{robot.capitalize()}Goal1-v0")
+    if shield is not None:
+        env = ShieldedEnv(env, shield)
+    base = env.unwrapped
+    heading = {"point": 0.0, "mass": 0.0, "car": math.pi / 2}[robot]  # Car drives along body -y
+    layout = {"agent": (0.0, 0.0), "agent_yaw": heading, "hazards": [(1.2, 0.0)],
+              "vases": [(-1.5, 1.5)], "goal": (-1.5, -1.5)}
+    env.reset(seed=0, options={"layout": layout})
+    full = {"point": [1.0, 0.0], "car": [1.0, 1.0], "mass": [1.0, 0.0]}[robot]
+    cost, closest = 0.0, np.inf
+    for _ in range(150):
+        _, _, _, _, info = env.step(np.array(full))
+        cost += info["cost"]
+        closest = min(closest, float(np.linalg.norm(base.robot_position - (1.2, 0.0))))
+    return cost, closest
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+@pytest.mark.parametrize("perception", ["lidar", "gt"])
+def test_filter_stops_the_robot_before_a_planted_hazard(robot: str, perception: str) -> None:
+    cost, closest = _drive_at_hazard(robot, None)
+    assert cost > 0 and closest < 0.1  # unfiltered, the robot drives through the hazard
+    shield = SafetyShield(margin=0.05, perception=perception)
+    cost, closest = _drive_at_hazard(robot, shield)
+    radius = gym.make(f"sims/Safety{robot.capitalize()}Goal1-v0").unwrapped.hazard_radius
+    assert cost == 0.0
+    assert radius < closest < radius + 0.4  # it stopped close, not far away
+    assert shield.stats.braked + shield.stats.escaped > 0
+
+
+def test_filter_leaves_actions_alone_far_from_obstacles() -> None:
+    env = ShieldedEnv(gym.make("sims/SafetyPointGoal1-v0"), SafetyShield())
+    layout = {"agent": (0.0, 0.0), "agent_yaw": 0.0, "hazards": [(1.8, 1.8)],
+              "vases": [(-1.8, 1.8)], "goal": (-1.5, -1.5)}
+    env.reset(seed=0, options={"layout": layout})
+    _, _, _, _, info = env.step(np.array([0.02, 0.0]))
+    assert info["shield_replaced"] is False
+    assert env.shield.stats.checked == 0
+
+
+def test_shield_rejects_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="margin"):
+        SafetyShield(margin=-0.1)
+    with pytest.raises(ValueError, match="perception"):
+        SafetyShield(perception="sonar")
+    with pytest.raises(ValueError, match="kinds"):
+        SafetyShield(kinds=("lava",))
