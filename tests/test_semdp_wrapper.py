@@ -123,12 +123,17 @@ def test_semdp_certificate_holds_on_every_step_of_a_rollout(perception: str) -> 
 def test_semdp_info_carries_timings_and_counts() -> None:
     env = _semdp()
     env.reset(seed=0)
-    env.step(np.zeros(2))
+    _, _, _, _, first = env.step(np.zeros(2))
+    base = env.unwrapped
+    root, heading = base.robot_position.copy(), base.robot_heading
     _, _, _, _, info = env.step(np.array([0.5, -0.5]))
     for key in ("perception_s", "plan_s", "follow_s", "sim_s"):
-        assert info[key] >= 0.0 and env.timing[key] >= info[key]
+        assert info[key] > 0.0
+        assert env.timing[key] == pytest.approx(first[key] + info[key])
     assert env.high_level_steps == 2 and env.low_level_steps == 20
-    assert info["subgoal"].shape == (2,) and info["n_obstacles"] >= 0
+    # the subgoal is the action times 2 m in the ego frame, from the root at the window start
+    assert np.allclose(info["subgoal"], root + ego_to_world(np.array([1.0, -1.0]), heading))
+    assert np.allclose(first["subgoal"], first["plan"].waypoints[0])  # a zero action: stay
 
 
 def test_semdp_rejects_bad_arguments() -> None:
