@@ -272,23 +272,6 @@ def test_reference_reads_the_command_and_summarises_the_sweep(tmp_path: Path) ->
         sweep_command(tmp_path / "0_a")
 
 
-def test_reeval_rejects_unfinished_runs_and_unknown_keys(tmp_path: Path) -> None:
-    from semdp.experiments.reeval import reevaluate
-
-    with pytest.raises(ValueError, match="not a finished run"):
-        reevaluate(tmp_path, tmp_path / "out", "x", [])
-    (tmp_path / "checkpoints").mkdir()
-    (tmp_path / "checkpoints" / "last.pt").write_bytes(b"")
-    OmegaConf.save(OmegaConf.create({"env": {"eval_wrapper": {"planner": "lm_adaptive"}}}),
-                   tmp_path / "config.yaml")
-    with pytest.raises(ValueError, match="exists"):
-        reevaluate(tmp_path, tmp_path, "x", [])
-    with pytest.raises(ValueError, match="existing key"):
-        reevaluate(tmp_path, tmp_path / "out", "x", ["env.eval_wrapper.planer=lm"])
-    with pytest.raises(ValueError, match="key=value"):
-        reevaluate(tmp_path, tmp_path / "out", "x", ["env.eval_wrapper.planner"])
-
-
 @pytest.mark.parametrize(
     ("launcher", "plugin", "target"),
     [("local", "hydra_plugins.hydra_joblib_launcher", "JoblibLauncher"),

@@ -1,4 +1,5 @@
-"""Evaluate a trained run on a modified evaluation env (SPEC §4.3, §5).
+"""Evaluate a trained run on a modified evaluation env (semdp/README.md, "How the presets are
+built").
 
 Both the eps' trade-off (Fig. B.1) and the transfer stand-in (Table 3.2) re-evaluate a policy
 with the mean action on envs that differ from the training ones. :func:`evaluate_on` swaps a
@@ -17,30 +18,52 @@ from omegaconf import DictConfig, OmegaConf
 
 from semdp.algos.base import CHECKPOINT_NAME, Algorithm
 from semdp.envs import make_vec_env
+from semdp.train import build_algorithm
 
 logger = logging.getLogger(__name__)
 
 
-def load_trained(run_dir: str | Path) -> tuple[Algorithm, DictConfig]:
+def load_trained(
+    run_dir: str | Path, cfg: DictConfig | None = None
+) -> tuple[Algorithm, DictConfig]:
     """Rebuild the algorithm of a finished run from ``config.yaml`` and ``checkpoints/last.pt``.
 
     Sets torch's thread count to the run's ``torch_threads`` (1 by default), as training did:
     float reductions depend on it, so an evaluation is reproducible on any machine.
 
-    Raises:
-        ValueError: ``run_dir`` lacks ``config.yaml`` or the checkpoint.
-    """
-    from semdp.train import build_algorithm
+    Args:
+        run_dir: the run directory.
+        cfg: the config to build from (e.g. the saved one with evaluation-time changes);
+            ``None`` = the run's ``config.yaml``.
 
+    Raises:
+        ValueError: ``run_dir`` lacks ``config.yaml`` or the checkpoint, or the checkpoint was
+            written by another algorithm than the config's.
+    """
     run_dir = Path(run_dir)
     ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
     if not (run_dir / "config.yaml").is_file() or not ckpt.is_file():
         raise ValueError(f"{run_dir} is not a finished run dir (needs config.yaml and {ckpt.name})")
-    cfg = OmegaConf.load(run_dir / "config.yaml")
+    if cfg is None:
+        cfg = OmegaConf.load(run_dir / "config.yaml")
     torch.set_num_threads(int(cfg.get("torch_threads", 1) or 1))
     algo = build_algorithm(cfg)
-    algo.load_checkpoint(ckpt)
+    state = torch.load(ckpt, weights_only=False)["algo"]
+    check_checkpoint_fits(algo, state, cfg)
+    algo.load_state_dict(state)
     return algo, cfg
+
+
+def check_checkpoint_fits(algo: Algorithm, state: Mapping[str, Any], cfg: DictConfig) -> None:
+    """Raise ``ValueError`` unless ``state`` has the keys of ``algo``'s own checkpoints."""
+    expected, found = set(algo.state_dict()), set(state)
+    if expected != found:
+        name = cfg.get("algo_name") or str(cfg.algo.get("_target_", "?"))
+        raise ValueError(
+            f"checkpoints/{CHECKPOINT_NAME} was not written by {name} "
+            f"({type(algo).__name__}, the algorithm of config.yaml): missing "
+            f"{sorted(expected - found)}, unexpected {sorted(found - expected)}"
+        )
 
 
 def evaluate_on(

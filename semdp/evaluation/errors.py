@@ -1,0 +1,7 @@
+"""The error ``semdp-eval`` reports as one line (semdp/README.md, "Evaluating a trained run")."""
+
+from __future__ import annotations
+
+
+class EvalError(ValueError):
+    """A bad ``semdp-eval`` argument or run directory; the message names the problem."""
