@@ -1,4 +1,4 @@
-"""``semdp-report SWEEP_DIR [--out DIR]``: tables and figures from a sweep (issue 8, SPEC §4.3).
+"""``semdp-report SWEEP_DIR [--out DIR]``: tables and figures from a sweep (docs/design.md).
 
 Finds every run directory below ``SWEEP_DIR`` (one holding ``metrics.json`` and/or
 ``progress.csv``; see :mod:`semdp.reporting.runs` for the fields used), groups runs by method label
@@ -26,6 +26,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+from semdp.reporting.names import algorithm_name
 from semdp.reporting.plots import method_colours, plot_tradeoff, plot_training_curves
 from semdp.reporting.runs import UNKNOWN, RunRecord, load_runs, mean_and_standard_error
 
@@ -42,8 +43,10 @@ def format_cell(values: list[float], max_seeds: int, digits: int = 2) -> str:
 
 
 def order_labels(labels: set[str], order: list[str] | None = None) -> list[str]:
-    """``order`` first (those present), then the remaining labels alphabetically."""
-    first = [label for label in (order or []) if label in labels]
+    """``order`` first (those present; ``ppo_lag`` also names ``PPO-Lag``), then the remaining
+    labels alphabetically."""
+    wanted = [algorithm_name(label) if label not in labels else label for label in order or []]
+    first = [label for label in wanted if label in labels]
     return first + sorted(labels - set(first))
 
 

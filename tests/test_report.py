@@ -13,6 +13,7 @@ import pytest
 from PIL import Image
 
 from semdp.report import TABLE_NAME, build_table, format_cell, main, write_report
+from semdp.reporting.names import algorithm_name, env_name
 from semdp.reporting.plots import aggregate_curves, smooth
 from semdp.reporting.runs import find_run_dirs, load_run, load_runs, mean_and_standard_error
 
@@ -138,7 +139,8 @@ def test_table_has_table_3_1_layout_with_mean_and_standard_error(sweep: Path) ->
     lines = table.splitlines()
     header = next(line for line in lines if line.startswith("| env |"))
     columns = [c.strip() for c in header.strip("|").split("|")]
-    assert columns == ["env", "metric", "Ours w/ gt", "cpo", "ppo_lag", "semdp"]
+    # Hydra choice names read as the thesis writes them; preset labels are kept
+    assert columns == ["env", "metric", "CPO", "Ours w/ gt", "PPO-Lag", "semdp"]
     rows = {
         tuple(c.strip() for c in line.strip("|").split("|")[:2]): [
             c.strip() for c in line.strip("|").split("|")[2:]
@@ -146,10 +148,10 @@ def test_table_has_table_3_1_layout_with_mean_and_standard_error(sweep: Path) ->
         for line in lines
         if line.startswith("| push1") or line.startswith("| goal1")
     }
-    assert rows[("push1", "reward")] == ["–", "1.00 ± – (n=1)", "2.00 ± 1.00 (n=2)", "6.00 ± 0.58"]
-    assert rows[("push1", "cost")] == ["–", "1.00 ± – (n=1)", "6.00 ± 2.00 (n=2)", "0.00 ± 0.00"]
+    assert rows[("push1", "reward")] == ["1.00 ± – (n=1)", "–", "2.00 ± 1.00 (n=2)", "6.00 ± 0.58"]
+    assert rows[("push1", "cost")] == ["1.00 ± – (n=1)", "–", "6.00 ± 2.00 (n=2)", "0.00 ± 0.00"]
     assert set(rows) == {(env, m) for env in ("push1", "goal1") for m in ("reward", "cost")}
-    assert rows[("goal1", "reward")][0] == "2.50 ± –"
+    assert rows[("goal1", "reward")][1] == "2.50 ± –"
     # every incomplete run is named with its reason
     for name, reason in [("6", "status failed"), ("7", "status running"),
                          ("8", "no metrics.json"), ("9", "empty progress.csv"),
@@ -208,7 +210,7 @@ def test_write_report_writes_table_curves_and_tradeoff(tmp_path: Path) -> None:
                    eval_return=3.0, eval_cost=2.0)  # fmt: skip
     written = write_report(root, tmp_path / "report")
     names = sorted(path.name for path in written)
-    assert names == ["curves_point_push1.png", "table.md", "tradeoff_point_push1.png"]
+    assert names == ["curves_PointPush1.png", "table.md", "tradeoff_PointPush1.png"]
     for path in written:
         if path.suffix == ".png":
             assert Image.open(path).size[0] > 500
@@ -236,7 +238,7 @@ def test_cli_order_puts_named_methods_first(sweep: Path, tmp_path: Path) -> None
         if line.startswith("| env |")
     )
     assert [c.strip() for c in header.strip("|").split("|")][2:] == [
-        "semdp", "ppo_lag", "Ours w/ gt", "cpo"
+        "semdp", "PPO-Lag", "CPO", "Ours w/ gt"
     ]  # fmt: skip
 
 
@@ -273,3 +275,17 @@ def test_semdp_curves_are_put_on_low_level_env_steps(tmp_path: Path) -> None:
     assert load_run(unfinished).curves["env_steps"].tolist() == [5_000.0, 10_000.0]
     plain = load_run(_write_run(tmp_path / "ppo", algo="ppo", env="PointPush1", seed=0, rows=2))
     assert plain.curves["env_steps"].tolist() == [1_000.0, 2_000.0]
+
+
+@pytest.mark.parametrize(
+    ("raw", "algo", "env"),
+    [("ppo_lag", "PPO-Lag", None), ("sp_ppo_lag", "SP-PPO-Lag", None), ("Ours", "Ours", None),
+     ("point_goal1", None, "PointGoal1"), ("car_button2", None, "CarButton2"),
+     ("drive_circle_v4.0", None, "Circle 4 m/s"), ("PointPush1", None, "PointPush1")],
+)
+def test_report_names_read_as_the_thesis_writes_them(raw: str, algo: str | None,
+                                                     env: str | None) -> None:
+    if algo is not None:
+        assert algorithm_name(raw) == algo
+    if env is not None:
+        assert env_name(raw) == env

@@ -1,1 +1,1 @@
-"""Turn a sweep's run directories into tables and figures (``semdp-report``, SPEC §4.3)."""
+"""Turn a sweep's run directories into tables and figures (``semdp-report``; docs/design.md)."""

@@ -1,4 +1,4 @@
-"""Find and load run directories of a sweep (run-directory contract, SPEC §4.3).
+"""Find and load run directories of a sweep (the run-directory contract of docs/design.md).
 
 Fields relied on (all optional; whatever is missing is reported, never fatal):
 
@@ -28,6 +28,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import yaml
+
+from semdp.reporting.names import algorithm_name, env_name
 
 logger = logging.getLogger(__name__)
 
@@ -211,8 +213,8 @@ def load_run(path: Path) -> RunRecord:
     problems = [p for p in (metrics_problem, progress_problem) if p]
     if metrics is None:
         names = _read_config_names(path)
-        label = str(names.get("label") or names.get("algo_name") or UNKNOWN)
-        env = str(names.get("env_name") or UNKNOWN)
+        label = str(names.get("label") or algorithm_name(str(names.get("algo_name") or UNKNOWN)))
+        env = env_name(str(names.get("env_name") or UNKNOWN))
         seed_text = names.get("seed")
         seed = int(seed_text) if isinstance(seed_text, str) and seed_text.isdigit() else None
         status = "no metrics.json" if metrics_problem == "no metrics.json" else "unreadable"
@@ -232,8 +234,8 @@ def load_run(path: Path) -> RunRecord:
         path=path,
         status=status,
         error=str(metrics["error"]) if metrics.get("error") else None,
-        label=str(metrics.get("label") or metrics.get("algo") or UNKNOWN),
-        env=str(metrics.get("env") or UNKNOWN),
+        label=str(metrics.get("label") or algorithm_name(str(metrics.get("algo") or UNKNOWN))),
+        env=env_name(str(metrics.get("env") or UNKNOWN)),
         seed=int(seed) if isinstance(seed, int) and not isinstance(seed, bool) else None,
         eval_return=eval_return,
         eval_cost=eval_cost,

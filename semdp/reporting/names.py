@@ -1,0 +1,36 @@
+"""Names as a reader of the thesis expects them in tables and legends.
+
+Runs without a ``label`` are named by their Hydra choices (``ppo_lag``, ``point_goal1``,
+``drive_circle_v4.0``); the report shows ``PPO-Lag``, ``PointGoal1``, ``Circle 4 m/s``.
+Labels set by the presets (``Ours``, ``PPO Lag`` as in Table 3.1) are kept as they are.
+"""
+
+from __future__ import annotations
+
+import re
+
+ALGORITHMS: dict[str, str] = {
+    "ppo": "PPO", "ppo_lag": "PPO-Lag", "sp_ppo_lag": "SP-PPO-Lag", "trpo": "TRPO",
+    "trpo_lag": "TRPO-Lag", "cpo": "CPO", "sac": "SAC",
+}
+_SAFETY_GYM = re.compile(r"^(point|car|mass)_(goal|button|push)(\d)$")
+_DRIVING = re.compile(r"^drive_(circle|trajectory)(?:_v(\d+(?:\.\d+)?))?$")
+
+
+def algorithm_name(name: str) -> str:
+    """``ppo_lag`` -> ``PPO-Lag``; any other name unchanged."""
+    return ALGORITHMS.get(name, name)
+
+
+def env_name(name: str) -> str:
+    """``point_goal1`` -> ``PointGoal1``, ``drive_circle_v4.0`` -> ``Circle 4 m/s``; any other
+    name unchanged."""
+    match = _SAFETY_GYM.match(name)
+    if match:
+        robot, task, level = match.groups()
+        return f"{robot.capitalize()}{task.capitalize()}{level}"
+    match = _DRIVING.match(name)
+    if match:
+        track, speed = match.groups()
+        return track.capitalize() + (f" {float(speed):g} m/s" if speed else "")
+    return name
