@@ -20,7 +20,7 @@ SEMDP_METHODS = ("ours", "ours_gt", "ours_wo_lag", "ppo_lag_sac", "sac_ppo_lag")
 BASELINES = ("cpo", "ppo_lag", "trpo_lag")
 PRESETS = ("semdp_push", "semdp_ablations", "semdp_goal", "semdp_tradeoff", "transfer")
 #: The robot facts the tests hold the configs to (conf/robot/<robot>.yaml).
-RESCUE = {"point": None, "car": "ipopt", "mass": None}
+RESCUE = {"point": "ipopt", "car": "ipopt", "mass": "ipopt"}
 FOLLOWER = {"point": ("PolicyFollower", "point.pt"), "car": ("PolicyFollower", "car.pt"),
             "mass": ("ProportionalFollower", None)}
 
