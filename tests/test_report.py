@@ -289,3 +289,16 @@ def test_report_names_read_as_the_thesis_writes_them(raw: str, algo: str | None,
         assert algorithm_name(raw) == algo
     if env is not None:
         assert env_name(raw) == env
+
+
+def test_semdp_curves_start_after_the_followers_training_steps(tmp_path: Path) -> None:
+    """Fig. 3.3: a SEMDP run's curve is on env steps (k per logged step) plus the follower's
+    training steps recorded as ``env.pretrain_steps``."""
+    run_dir = tmp_path / "ours"
+    _write_run(run_dir, algo="semdp", env="point_push1", seed=0, eval_return=1.0, eval_cost=0.0,
+               extra={"semdp": {"k": 10}})
+    (run_dir / "config.yaml").write_text("env:\n  pretrain_steps: 60000\n  wrapper: null\n")
+    steps = load_run(run_dir).curves["env_steps"]
+    logged = np.array([float(r["env_steps"]) for r in csv.DictReader(
+        (run_dir / "progress.csv").open())])
+    np.testing.assert_allclose(steps, logged * 10 + 60000)

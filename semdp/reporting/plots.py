@@ -10,7 +10,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.signal import savgol_filter
 
-from semdp.reporting.runs import FloatArray, RunRecord, mean_and_standard_error
+from semdp.reporting.runs import FloatArray, RunRecord, mean_and_standard_error, pretrain_steps
 
 #: Savitzky-Golay window for long series; shorter series use an adapted odd window.
 DEFAULT_WINDOW = 21
@@ -86,6 +86,11 @@ def method_colours(runs: list[RunRecord]) -> dict[str, str]:
     return {label: f"C{index % 10}" for index, label in enumerate(sorted({r.label for r in runs}))}
 
 
+def pretrain_offset(run: RunRecord) -> int:
+    """The run's ``env.pretrain_steps`` (its curves were shifted by them when loaded)."""
+    return pretrain_steps(run.path)
+
+
 def plot_training_curves(
     runs: list[RunRecord], env: str, path: Path, colours: dict[str, str] | None = None
 ) -> bool:
@@ -117,7 +122,11 @@ def plot_training_curves(
     for axis, title in zip(axes, ("episode return", "episode cost"), strict=True):
         axis.set(xlabel="environment steps", ylabel=title, title=f"{env}: {title}")
         axis.legend(fontsize=8)
-    figure.suptitle(f"{env}: mean over seeds, Savitzky-Golay smoothed, shaded = ±1 standard error")
+    offset = any(run.curves.get("env_steps") is not None and len(run.curves["env_steps"])
+                 and pretrain_offset(run) for group in by_label.values() for run in group)
+    figure.suptitle(f"{env}: mean over seeds, Savitzky-Golay smoothed, shaded = ±1 standard error"
+                    + ("; SEMDP curves start after the follower's training steps" if offset
+                       else ""))
     figure.savefig(path, dpi=110)
     return True
 

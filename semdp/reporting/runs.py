@@ -203,13 +203,27 @@ def steps_per_decision(path: Path, metrics: dict[str, Any] | None) -> int:
     return 1
 
 
+def pretrain_steps(path: Path) -> int:
+    """Env steps spent before the run's own (e.g. the SEMDP follower's training): the run's
+    ``env.pretrain_steps``, 0 when absent. Fig. 3.3 starts the SEMDP curves after them."""
+    file = path / CONFIG_NAME
+    if not file.is_file():
+        return 0
+    try:
+        config = yaml.safe_load(file.read_text(errors="replace"))
+        return max(int(config["env"].get("pretrain_steps") or 0), 0)
+    except Exception:  # a malformed config only loses the offset, never the run
+        return 0
+
+
 def load_run(path: Path) -> RunRecord:
     """Read one run directory; never raises on missing or malformed files."""
     path = Path(path)
     metrics, metrics_problem = _read_metrics(path)
     curves, progress_problem = read_progress(path)
     if "env_steps" in curves:
-        curves["env_steps"] = curves["env_steps"] * steps_per_decision(path, metrics)
+        curves["env_steps"] = (curves["env_steps"] * steps_per_decision(path, metrics)
+                               + pretrain_steps(path))
     problems = [p for p in (metrics_problem, progress_problem) if p]
     if metrics is None:
         names = _read_config_names(path)
