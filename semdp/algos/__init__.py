@@ -1,12 +1,14 @@
-"""Safe RL algorithms (SPEC §4.1): PPO, PPO-Lag, SP-PPO-Lag, TRPO-Lag, CPO, SAC.
+"""Safe RL algorithms (semdp/README.md, "Algorithms and recorded choices"): PPO, PPO-Lag,
+SP-PPO-Lag, TRPO-Lag, CPO, SAC.
 
 Hierarchy (at most two levels below the shared bases): ``OnPolicyAlgorithm -> PPO -> PPOLag ->
 SPPPOLag``, ``OnPolicyAlgorithm -> TRPO -> TRPOLag / CPO``, ``Algorithm -> SAC``. Everything else
 is composition: :mod:`semdp.common.lagrange`, :mod:`semdp.common.advantages`, ...
 """
 
-from semdp.algos.base import Algorithm, OnPolicyAlgorithm
+from semdp.algos.base import Algorithm
 from semdp.algos.cpo import CPO
+from semdp.algos.on_policy import OnPolicyAlgorithm
 from semdp.algos.ppo import PPO
 from semdp.algos.ppo_lag import PPOLag
 from semdp.algos.sac import SAC

@@ -160,7 +160,7 @@ class CPO(TRPO):
         """Solve the CPO subproblem and line-search the step with the accept rule."""
         with torch.no_grad():
             d = self.actor.distribution(batch.obs)
-            old = Normal(d.mean.clone(), d.stddev.clone())
+            old = Normal(d.mean.clone(), d.stddev.clone(), validate_args=False)
         surr_r = self.surrogate(batch, batch.adv_r)
         g = self.flat_grad(surr_r)
         surr_c = self.surrogate(batch, batch.adv_c)

@@ -1,10 +1,16 @@
 """Proximal Policy Optimisation with clipped surrogate (Schulman et al. 2017; thesis Eq. 2.6).
 
-Update scheme (recorded choice, research/saferl_anchors.md "Implications"): CleanRL-style
+Update scheme (recorded choice, semdp/README.md "Algorithms and recorded choices"): CleanRL-style
 ``update_iters`` passes x ``num_minibatches`` minibatches, gradient-norm clip 0.5, actor learning
 rate linearly decayed to 0 over the run, early stop of the passes when the approximate KL on the
 whole batch exceeds ``target_kl`` (OmniSafe's per-pass check). The cost critic is trained as well
 so that PPO logs the same columns as its constrained variants.
+
+With ``parallel_critics`` the critics regress in a helper process during the actor passes. Their
+permutations come from torch's generator after the actor's, whose number is only known when
+the KL check stops the passes; the helper starts on the permutations that follow
+``update_iters`` passes (no early stop, the common case) and is cancelled and replaced by a
+regression here when the passes stop earlier, so the result is the same either way.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from typing import Any
 import gymnasium as gym
 import torch
 
-from semdp.algos.base import OnPolicyAlgorithm
+from semdp.algos.on_policy import OnPolicyAlgorithm
 from semdp.common.buffers import RolloutBatch
 
 
@@ -30,7 +36,7 @@ class PPO(OnPolicyAlgorithm):
         num_minibatches: minibatches per pass.
         target_kl: early-stop threshold on KL(old || new) (``None`` = off).
         ent_coef: entropy bonus.
-        **kwargs: forwarded to :class:`~semdp.algos.base.OnPolicyAlgorithm`.
+        **kwargs: forwarded to :class:`~semdp.algos.on_policy.OnPolicyAlgorithm`.
     """
 
     extra_columns = ("loss_pi", *OnPolicyAlgorithm.base_columns, "update_passes")
@@ -68,7 +74,8 @@ class PPO(OnPolicyAlgorithm):
         self.actor_lr, self.lr_decay = actor_lr, lr_decay
         self.clip_range, self.update_iters = clip_range, update_iters
         self.num_minibatches, self.target_kl, self.ent_coef = num_minibatches, target_kl, ent_coef
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=actor_lr)
+        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=actor_lr,
+                                                foreach=True)
 
     def policy_advantage(self, batch: RolloutBatch) -> torch.Tensor:
         """The advantage the actor ascends; PPO uses A_r (PPO-Lag overrides)."""
@@ -86,6 +93,14 @@ class PPO(OnPolicyAlgorithm):
         stats = self.collect_rollout()
         self.before_update(stats)
         batch = self.compute_batch()
+        with self.timer.phase("update"):
+            out = self._update(batch)
+        self.epoch += 1
+        return {**stats, **self.constraint_stats(), **out}
+
+    def _update(self, batch: RolloutBatch) -> dict[str, float]:
+        """Clipped-surrogate passes (critics meanwhile in the helper, if any), then critics."""
+        critic_job = self.start_critic_update(batch, skip=self.update_iters)
         adv = self.policy_advantage(batch)
         if self.lr_decay:
             frac = 1.0 - self.epoch / max(self.total_epochs, 1)
@@ -108,7 +123,8 @@ class PPO(OnPolicyAlgorithm):
                 self.actor_optimizer.zero_grad()
                 loss_pi.backward()
                 if self.max_grad_norm is not None:
-                    torch.nn.utils.clip_grad_norm_(self.actor.parameters(), self.max_grad_norm)
+                    torch.nn.utils.clip_grad_norm_(self.actor.parameters(), self.max_grad_norm,
+                                                   foreach=True)
                 self.actor_optimizer.step()
             passes += 1
             with torch.no_grad():  # k3 estimator of KL(old || new), Schulman's blog
@@ -116,11 +132,9 @@ class PPO(OnPolicyAlgorithm):
                 kl = float(((log_ratio.exp() - 1) - log_ratio).mean())
             if self.target_kl is not None and kl > self.target_kl:
                 break
-        critic_stats = self.update_critics(batch)
-        self.epoch += 1
+        critic_stats = self.finish_critic_update(batch, critic_job, drawn=passes)
         return {
-            **stats, **self.constraint_stats(), **critic_stats,
-            "loss_pi": loss_pi.item(), "entropy": entropy.item(), "kl": kl,
+            **critic_stats, "loss_pi": loss_pi.item(), "entropy": entropy.item(), "kl": kl,
             "update_passes": passes,
         }
 

@@ -6,7 +6,9 @@ gradients on Fisher-vector products (Hessian of the mean KL, damping ``cg_dampin
 ``sqrt(2 delta / x'Fx) x``, backtracking line search (factor ``backtrack_coef``, at most
 ``backtrack_iters`` tries) accepting the first step with KL <= ``target_kl`` and an improved
 surrogate, else keeping the old parameters. Critics: ``critic_iters`` minibatch passes at
-``critic_lr`` (OmniSafe: 10 passes, lr 1e-3).
+``critic_lr`` (OmniSafe: 10 passes, lr 1e-3); the actor step draws no random numbers, so with
+``parallel_critics`` the critics regress in a helper process meanwhile on exactly the
+permutations they would draw afterwards.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import torch
 from torch.distributions import Normal, kl_divergence
 from torch.nn.utils import parameters_to_vector, vector_to_parameters
 
-from semdp.algos.base import OnPolicyAlgorithm
+from semdp.algos.on_policy import OnPolicyAlgorithm
 from semdp.common.buffers import RolloutBatch
 
 
@@ -57,7 +59,7 @@ class TRPO(OnPolicyAlgorithm):
         cg_damping: Tikhonov damping added to the Fisher-vector product.
         backtrack_iters: maximum line-search steps.
         backtrack_coef: step shrink factor per line-search step.
-        **kwargs: forwarded to :class:`~semdp.algos.base.OnPolicyAlgorithm` (critic settings;
+        **kwargs: forwarded to :class:`~semdp.algos.on_policy.OnPolicyAlgorithm` (critic settings;
             ``critic_lr`` defaults to 1e-3 and ``critic_minibatches`` to the batch size / 128).
     """
 
@@ -154,7 +156,7 @@ class TRPO(OnPolicyAlgorithm):
         adv = self.policy_advantage(batch)
         with torch.no_grad():
             d = self.actor.distribution(batch.obs)
-            old = Normal(d.mean.clone(), d.stddev.clone())
+            old = Normal(d.mean.clone(), d.stddev.clone(), validate_args=False)
         surr = self.surrogate(batch, adv)
         g = self.flat_grad(surr)
         fvp = self.fisher_vector_product(batch, old)
@@ -179,10 +181,12 @@ class TRPO(OnPolicyAlgorithm):
         stats = self.collect_rollout()
         self.before_update(stats)
         batch = self.compute_batch()
-        actor_stats = self.update_actor(batch)
-        critic_stats = self.update_critics(batch)
-        with torch.no_grad():
-            entropy = float(self.actor.distribution(batch.obs[:1]).entropy().sum())
+        with self.timer.phase("update"):
+            critic_job = self.start_critic_update(batch, skip=0)
+            actor_stats = self.update_actor(batch)
+            critic_stats = self.finish_critic_update(batch, critic_job, drawn=0)
+            with torch.no_grad():
+                entropy = float(self.actor.distribution(batch.obs[:1]).entropy().sum())
         self.epoch += 1
         return {**stats, **self.constraint_stats(), **actor_stats, **critic_stats,
                 "entropy": entropy}

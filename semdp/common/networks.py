@@ -1,4 +1,4 @@
-"""Actor and critic networks (SPEC §4.1; defaults from research/saferl_anchors.md "Implications").
+"""Actor and critic networks (defaults: semdp/README.md, "Algorithms and recorded choices").
 
 On-policy: separate MLPs for the Gaussian actor (state-independent learnable ``log_std``), the
 reward critic and the cost critic, 64x64 tanh, orthogonal init (CleanRL gains: sqrt(2) hidden,
@@ -59,8 +59,14 @@ class GaussianActor(nn.Module):
         self.log_std = nn.Parameter(torch.full((act_dim,), float(log_std_init)))
 
     def distribution(self, obs: torch.Tensor) -> Normal:
-        """pi(.|obs)."""
-        return Normal(self.mean_net(obs), self.log_std.exp().expand(obs.shape[0], -1))
+        """pi(.|obs).
+
+        Without argument validation: its checks (finite mean, positive scale, real samples)
+        cost more than the forward pass of these small networks; a NaN policy still fails at
+        the env's action check.
+        """
+        return Normal(self.mean_net(obs), self.log_std.exp().expand(obs.shape[0], -1),
+                      validate_args=False)
 
     def log_prob(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Summed log-density of ``actions`` (shape ``(batch,)``)."""
@@ -103,7 +109,7 @@ class SquashedGaussianActor(nn.Module):
         mean, raw_log_std = self.net(obs).chunk(2, dim=-1)
         span = self.LOG_STD_MAX - self.LOG_STD_MIN
         log_std = self.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
-        dist = Normal(mean, log_std.exp())
+        dist = Normal(mean, log_std.exp(), validate_args=False)
         pre_tanh = mean if deterministic else dist.rsample()
         action = torch.tanh(pre_tanh)
         # log|d tanh(u)/du| = 2 (log 2 - u - softplus(-2u)), the numerically stable form.

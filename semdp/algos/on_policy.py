@@ -1,0 +1,402 @@
+"""On-policy rollouts with a Gaussian actor, a reward critic and a cost critic (PPO and TRPO
+families; semdp/README.md, "Algorithms and recorded choices").
+
+Two optional helper processes use a second core without changing a single number (same seed,
+same ``progress.csv``; semdp/README.md, "Throughput"):
+
+* ``vectorization="async"``: the training envs step in a forked helper
+  (:class:`~semdp.common.async_stepper.AsyncStepper`) while the trainer evaluates the critics
+  and stores the previous step;
+* ``parallel_critics=True``: the critics regress in a forked helper
+  (:class:`~semdp.common.critic_worker.CriticWorker`) while the actor updates; the helper gets
+  the permutations the trainer's generator would have drawn for them.
+
+``"auto"`` turns each on when the platform can fork and two CPUs are available, and keeps the
+envs in the trainer when a sub-env carries a wrapper of its own (its state, e.g. the SEMDP
+wrapper's timings, is read from the trainer's copy).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import pickle
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+import torch
+
+from semdp.algos.base import Algorithm
+from semdp.common.async_stepper import AsyncStepper, PickledEnvs
+from semdp.common.buffers import RolloutBatch, RolloutBuffer
+from semdp.common.critic_regression import CriticTargets, regress_critics
+from semdp.common.critic_worker import CriticWorker
+from semdp.common.forked_worker import fork_available
+from semdp.common.networks import GaussianActor, ValueCritic
+from semdp.common.normalization import RunningNormalizer
+from semdp.common.vector_stepping import MergedInfoStepper, VectorStepper, stepper_for
+
+logger = logging.getLogger(__name__)
+
+VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
+#: Modules whose wrappers keep no state the trainer reads (``auto`` may fork the envs).
+_PLAIN_WRAPPER_MODULES: tuple[str, ...] = ("gymnasium.", "semdp.envs")
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - platforms without sched_getaffinity
+        return os.cpu_count() or 1
+
+
+def _plain_sub_envs(envs: gym.vector.VectorEnv) -> bool:
+    """Every sub-env's wrappers are gymnasium's or the cost checks of :mod:`semdp.envs`."""
+    if not isinstance(envs, gym.vector.SyncVectorEnv):
+        return False
+    for env in envs.envs:
+        while isinstance(env, gym.Wrapper):
+            if not type(env).__module__.startswith(_PLAIN_WRAPPER_MODULES):
+                return False
+            env = env.env
+    return True
+
+
+@dataclass(frozen=True)
+class _CriticJob:
+    """A critic regression running in the helper, on the permutations after ``skip`` draws."""
+
+    skip: int
+
+
+class OnPolicyAlgorithm(Algorithm):
+    """Rollouts with a Gaussian actor, reward critic and cost critic (shared by PPO and TRPO).
+
+    Observation normalisation: the running statistics are updated once per epoch, after the
+    rollout, so every sample of a batch was normalised the same way as the policy saw it.
+
+    Args:
+        envs, eval_envs, seed, steps_per_epoch: see :class:`~semdp.algos.base.Algorithm`.
+        hidden_sizes: MLP sizes of actor and critics.
+        activation: hidden activation.
+        log_std_init: initial log standard deviation of the policy.
+        gamma, gae_lambda: reward discount and GAE lambda.
+        gamma_c, gae_lambda_c: cost discount and GAE lambda.
+        critic_lr: Adam learning rate of both critics.
+        critic_iters: passes over the batch for the critics per epoch.
+        critic_minibatches: minibatches per critic pass.
+        critic_l2: L2 regularisation of critic weights (OmniSafe ``critic_norm_coef``).
+        max_grad_norm: gradient-norm clip (``None`` = off).
+        obs_normalize: running observation normalisation on/off.
+        obs_clip: clip of normalised observations.
+        vectorization: ``"sync"`` (training envs step in this process), ``"async"`` (in a
+            forked helper) or ``"auto"`` (see the module docstring).
+        parallel_critics: regress the critics in a forked helper during the actor update
+            (``True``/``False``/``"auto"``).
+    """
+
+    base_columns: tuple[str, ...] = ("loss_v", "loss_vc", "entropy", "kl")
+
+    def __init__(
+        self,
+        envs: gym.vector.VectorEnv,
+        eval_envs: gym.vector.VectorEnv | None,
+        seed: int,
+        steps_per_epoch: int = 20_000,
+        hidden_sizes: tuple[int, ...] = (64, 64),
+        activation: str = "tanh",
+        log_std_init: float = 0.0,
+        gamma: float = 0.99,
+        gae_lambda: float = 0.95,
+        gamma_c: float = 0.99,
+        gae_lambda_c: float = 0.95,
+        critic_lr: float = 3e-4,
+        critic_iters: int = 10,
+        critic_minibatches: int = 32,
+        critic_l2: float = 0.001,
+        max_grad_norm: float | None = 0.5,
+        obs_normalize: bool = True,
+        obs_clip: float = 5.0,
+        vectorization: str = "auto",
+        parallel_critics: bool | str = "auto",
+    ) -> None:
+        super().__init__(envs, eval_envs, seed, steps_per_epoch)
+        for name, v in (("critic_iters", critic_iters), ("critic_minibatches", critic_minibatches)):
+            if v < 1:
+                raise ValueError(f"{name} must be >= 1, got {v}")
+        if vectorization not in VECTORIZATION_MODES:
+            raise ValueError(f"vectorization must be one of {list(VECTORIZATION_MODES)}, "
+                             f"got {vectorization!r}")
+        if parallel_critics not in (True, False, "auto"):
+            raise ValueError(f"parallel_critics must be true, false or 'auto', "
+                             f"got {parallel_critics!r}")
+        self.gamma, self.gae_lambda = gamma, gae_lambda
+        self.gamma_c, self.gae_lambda_c = gamma_c, gae_lambda_c
+        self.critic_iters, self.critic_minibatches = critic_iters, critic_minibatches
+        self.critic_l2, self.max_grad_norm = critic_l2, max_grad_norm
+        hidden = tuple(int(h) for h in hidden_sizes)
+        self.actor = GaussianActor(self.obs_dim, self.act_dim, hidden, activation, log_std_init)
+        self.critic_r = ValueCritic(self.obs_dim, hidden, activation)
+        self.critic_c = ValueCritic(self.obs_dim, hidden, activation)
+        self.critic_optimizer = torch.optim.Adam(
+            [*self.critic_r.parameters(), *self.critic_c.parameters()], lr=critic_lr,
+            foreach=True,
+        )
+        self.normalizer = RunningNormalizer((self.obs_dim,), clip=obs_clip, enabled=obs_normalize)
+        self.buffer = RolloutBuffer(self.n_steps, self.num_envs, self.obs_dim, self.act_dim)
+        self.last_ep_cost: float | None = None
+        self.last_ep_length: float | None = None
+        helpers = fork_available() and _cpus() >= 2
+        self.vectorization = vectorization
+        if vectorization == "auto":
+            self.vectorization = "async" if helpers and _plain_sub_envs(envs) else "sync"
+        if self.vectorization == "async" and not fork_available():
+            raise ValueError("vectorization='async' needs the 'fork' start method")
+        self.parallel_critics = helpers if parallel_critics == "auto" else bool(parallel_critics)
+        if self.parallel_critics and not fork_available():
+            raise ValueError("parallel_critics needs the 'fork' start method")
+        self._stepper: VectorStepper | MergedInfoStepper | AsyncStepper | None = None
+        self._stepper_busy_seen = 0.0
+        self._critic_worker: CriticWorker | None = None
+
+    # ----------------------------------------------------------------- acting
+    def _tensor(self, obs: npt.ArrayLike) -> torch.Tensor:
+        return torch.as_tensor(self.normalizer(self._flat_obs(obs)))
+
+    def predict(self, obs: npt.ArrayLike, deterministic: bool = True) -> npt.NDArray[Any]:
+        """Mean (or sampled) action, clipped and scaled to the env bounds."""
+        with torch.inference_mode():
+            x = self._tensor(obs)
+            a = self.actor.mean_net(x) if deterministic else self.actor.distribution(x).sample()
+        return self.to_env_action(a.numpy())
+
+    def _training_stepper(self) -> VectorStepper | MergedInfoStepper | AsyncStepper:
+        if self._stepper is None:
+            if self.vectorization == "async":
+                self._stepper = AsyncStepper(self.envs)
+                self._stepper_busy_seen = 0.0
+            else:
+                self._stepper = stepper_for(self.envs)
+        return self._stepper
+
+    def collect_rollout(self) -> dict[str, float]:
+        """Fill the rollout buffer with ``n_steps`` vector steps; return episode statistics.
+
+        Per step: the actor acts, the env step starts, the critics value the observation and
+        the policy side of the row is stored (meanwhile the helper steps, when there is one),
+        then the step's result completes the row. Time-outs are bootstrapped with V(true final
+        observation).
+        """
+        perf = time.perf_counter
+        seconds = self.timer.seconds
+        buf = self.buffer
+        buf.reset()
+        stepper = self._training_stepper()
+        raw_obs = np.zeros((self.n_steps, self.num_envs, self.obs_dim))
+        boot_r = np.zeros((self.n_steps, self.num_envs))
+        boot_c = np.zeros((self.n_steps, self.num_envs))
+        for t in range(self.n_steps):
+            t0 = perf()
+            raw_obs[t] = self._obs
+            obs_t = self._tensor(self._obs)
+            with torch.inference_mode():
+                dist = self.actor.distribution(obs_t)
+                actions = dist.sample()
+                log_probs = dist.log_prob(actions).sum(-1)
+                stepper.step_async(self.to_env_action(actions))
+                t1 = perf()
+                v_r, v_c = self.critic_r(obs_t), self.critic_c(obs_t)
+            t2 = perf()
+            buf.store_policy_step(t, obs_t.numpy(), actions.numpy(), log_probs.numpy(),
+                                  v_r.numpy(), v_c.numpy())
+            t3 = perf()
+            step = stepper.step_wait()
+            t4 = perf()
+            ended = step.ended
+            timed_out = np.logical_and(ended, np.logical_not(step.terminated))
+            if timed_out.any():  # bootstrap time-outs with V(true final observation)
+                with torch.inference_mode():
+                    fo = self._tensor(step.final_observations()[timed_out])
+                    boot_r[t, timed_out] = self.critic_r(fo).numpy()
+                    boot_c[t, timed_out] = self.critic_c(fo).numpy()
+            t5 = perf()
+            buf.store_env_step(t, step.rewards, step.costs, step.terminated, ended)
+            self._track(step.rewards, step.costs, ended)
+            self._obs = self._flat_obs(step.obs)
+            t6 = perf()
+            seconds["policy"] += (t2 - t0) + (t5 - t4)
+            seconds["storage"] += (t3 - t2) + (t6 - t5)
+            seconds["simulation"] += t4 - t3
+        start = perf()
+        with torch.inference_mode():  # bootstrap the cut at the end of the rollout
+            last = self._tensor(self._obs)
+            last_r, last_c = self.critic_r(last).numpy(), self.critic_c(last).numpy()
+        buf.next_values_r[:-1], buf.next_values_r[-1] = buf.values_r[1:], last_r
+        buf.next_values_c[:-1], buf.next_values_c[-1] = buf.values_c[1:], last_c
+        ended = buf.episode_end.astype(bool)
+        buf.next_values_r[ended] = boot_r[ended]
+        buf.next_values_c[ended] = boot_c[ended]
+        self.normalizer.update(raw_obs.reshape(-1, self.obs_dim))
+        self.env_steps += self.steps_per_epoch
+        stats = self._pop_episode_stats()
+        if stats["episodes"]:
+            self.last_ep_cost, self.last_ep_length = stats["ep_cost"], stats["ep_length"]
+        if isinstance(stepper, AsyncStepper):
+            busy = stepper.busy_seconds
+            seconds["simulation_worker"] += busy - self._stepper_busy_seen
+            self._stepper_busy_seen = busy
+        seconds["storage"] += perf() - start
+        return stats
+
+    def compute_batch(self) -> RolloutBatch:
+        """GAE for reward and cost over the filled buffer."""
+        with self.timer.phase("storage"):
+            return self.buffer.compute(self.gamma, self.gae_lambda, self.gamma_c,
+                                       self.gae_lambda_c)
+
+    def estimated_episode_cost(self) -> float:
+        """J_c for the multiplier: mean cost of the episodes finished in the latest epochs.
+
+        Falls back to the per-step cost of the current rollout times its length when no
+        episode has finished yet.
+        """
+        if self.last_ep_cost is not None:
+            return self.last_ep_cost
+        return float(self.buffer.costs.mean() * self.n_steps)
+
+    # ----------------------------------------------------------------- critics
+    def _critic_minibatch(self, n: int) -> int:
+        return max(1, n // self.critic_minibatches)
+
+    def update_critics(self, batch: RolloutBatch) -> dict[str, float]:
+        """Minibatch regression of V_r and V_c on their GAE returns (+ L2 on weights), here.
+
+        One permutation per pass from torch's global generator.
+        """
+        n = batch.obs.shape[0]
+        perms = [torch.randperm(n) for _ in range(self.critic_iters)]
+        losses = regress_critics(
+            self.critic_r, self.critic_c, self.critic_optimizer,
+            CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
+            self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
+        )
+        assert losses is not None  # no stop condition here
+        return {"loss_v": losses[0], "loss_vc": losses[1]}
+
+    def start_critic_update(self, batch: RolloutBatch, skip: int) -> _CriticJob | None:
+        """Start the critic regression in the helper (``None`` without ``parallel_critics``).
+
+        The helper gets the permutations the global generator will draw after ``skip`` more
+        draws of ``randperm(batch size)`` (the actor passes that come first); the generator
+        itself is not advanced here.
+        """
+        if not self.parallel_critics:
+            return None
+        n = batch.obs.shape[0]
+        generator = torch.Generator()
+        generator.set_state(torch.get_rng_state())
+        for _ in range(skip):
+            torch.randperm(n, generator=generator)
+        perms = [torch.randperm(n, generator=generator) for _ in range(self.critic_iters)]
+        if self._critic_worker is None:
+            self._critic_worker = CriticWorker(self.critic_r, self.critic_c,
+                                               self.critic_optimizer)
+        self._critic_worker.submit(
+            self.critic_r, self.critic_c, self.critic_optimizer,
+            CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
+            self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
+        )
+        return _CriticJob(skip)
+
+    def finish_critic_update(
+        self, batch: RolloutBatch, job: _CriticJob | None, drawn: int
+    ) -> dict[str, float]:
+        """The critic update after ``drawn`` permutations were drawn since the job started.
+
+        The helper's result is used when it got the right permutations (then the global
+        generator draws them too, as a regression here would have); otherwise the job is
+        cancelled and the critics regress here.
+        """
+        if job is not None and self._critic_worker is not None:
+            if job.skip == drawn:
+                loss_v, loss_vc = self._critic_worker.result(
+                    self.critic_r, self.critic_c, self.critic_optimizer)
+                n = batch.obs.shape[0]
+                for _ in range(self.critic_iters):
+                    torch.randperm(n)
+                return {"loss_v": loss_v, "loss_vc": loss_vc}
+            self._critic_worker.cancel()
+        return self.update_critics(batch)
+
+    # ----------------------------------------------------------------- helpers and state
+    def env_snapshot(self) -> Any:
+        """The training env for a checkpoint; with ``async``, the helper's live one.
+
+        ``None`` (with a warning, once) when the helper cannot pickle it: a resume then
+        restarts the episodes in progress, as for an unpicklable env in this process.
+        """
+        if not isinstance(self._stepper, AsyncStepper):
+            return self.envs
+        try:
+            return PickledEnvs(self._stepper.env_state())
+        except RuntimeError as exc:
+            if not self._warned_unpicklable:
+                logger.warning("the env helper cannot pickle the envs (%s): checkpoints omit "
+                               "the env state; a resume will not be bit-identical", exc)
+                self._warned_unpicklable = True
+            return None
+
+    def _stop_stepper(self, fetch: bool) -> None:
+        stepper, self._stepper = self._stepper, None
+        if isinstance(stepper, AsyncStepper):
+            envs = None
+            if fetch:
+                try:
+                    envs = pickle.loads(stepper.env_state())
+                except RuntimeError:  # a step was in flight (an error interrupted it)
+                    envs = None
+            stepper.close()
+            if envs is not None:
+                self.envs.close()
+                self.envs = envs
+
+    def replace_envs(self, envs: gym.vector.VectorEnv) -> None:
+        """Continue with ``envs``; a helper stepping the old ones is stopped."""
+        self._stop_stepper(fetch=False)
+        super().replace_envs(envs)
+
+    def close_helpers(self) -> None:
+        """Stop the helpers; the env helper's live envs become :attr:`envs` again."""
+        self._stop_stepper(fetch=True)
+        if self._critic_worker is not None:
+            self._critic_worker.close()
+            self._critic_worker = None
+
+    def state_dict(self) -> dict[str, Any]:
+        """Base state plus networks, critic optimiser and normaliser."""
+        state = super().state_dict()
+        state.update(
+            actor=self.actor.state_dict(),
+            critic_r=self.critic_r.state_dict(),
+            critic_c=self.critic_c.state_dict(),
+            critic_optimizer=self.critic_optimizer.state_dict(),
+            normalizer=self.normalizer.state_dict(),
+            last_ep=(self.last_ep_cost, self.last_ep_length),
+        )
+        return state
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` (a helper stepping the previous envs is stopped)."""
+        self._stop_stepper(fetch=False)
+        super().load_state_dict(state)
+        self.actor.load_state_dict(state["actor"])
+        self.critic_r.load_state_dict(state["critic_r"])
+        self.critic_c.load_state_dict(state["critic_c"])
+        self.critic_optimizer.load_state_dict(state["critic_optimizer"])
+        self.normalizer.load_state_dict(state["normalizer"])
+        self.last_ep_cost, self.last_ep_length = state["last_ep"]
+

@@ -1,0 +1,170 @@
+"""The on-policy speed-ups change no number: fast stepping equals gymnasium's SyncVectorEnv, the
+env helper process equals stepping in the trainer, critics regressed in the helper equal the
+trainer's, whatever the mode a seeded run writes the same ``progress.csv``, resumes are exact,
+and every helper process is gone when ``learn`` returns."""
+
+from __future__ import annotations
+
+import csv
+import multiprocessing as mp
+import pickle
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import DictConfig, open_dict
+
+from semdp.common.async_stepper import AsyncStepper
+from semdp.common.critic_regression import CriticTargets, regress_critics
+from semdp.common.critic_worker import CriticWorker
+from semdp.common.forked_worker import fork_available
+from semdp.common.logger import TIMING_COLUMNS
+from semdp.common.networks import ValueCritic
+from semdp.common.vector_stepping import VectorStepper, success_flags
+from semdp.envs import make_vec_env, split_step_infos
+from semdp.train import run
+
+pytestmark = pytest.mark.skipif(not fork_available(), reason="helpers need fork")
+
+SYNC = ("+algo.vectorization=sync", "+algo.parallel_critics=false")
+ASYNC = ("+algo.vectorization=async", "+algo.parallel_critics=true")
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with (path / "progress.csv").open() as f:
+        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(f)]
+
+
+def _actions(rng: np.random.Generator, envs) -> np.ndarray:  # noqa: ANN001
+    space = envs.single_action_space
+    shape = (envs.num_envs, *space.shape)
+    return rng.uniform(space.low, space.high, shape).astype(space.dtype)
+
+
+@pytest.mark.parametrize("env_id", ["semdp/SpeedLimit-v0", "sims/SafetyPointButton1-v0"])
+def test_vector_stepper_matches_sync_vector_env_step(env_id: str) -> None:
+    cfg = {"id": env_id, "num_envs": 3, "kwargs": {"max_episode_steps": 40}}
+    ref, fast = make_vec_env(cfg, seed=0), make_vec_env(cfg, seed=0)
+    ref.reset(seed=5)
+    fast.reset(seed=5)
+    stepper = VectorStepper(fast)
+    rng = np.random.default_rng(0)
+    ends = 0
+    for _ in range(130):
+        actions = _actions(rng, ref)
+        obs, rewards, term, trunc, infos = ref.step(actions)
+        ended = np.logical_or(term, trunc)
+        costs, final_obs = split_step_infos(obs, infos, ended)
+        step = stepper.step(actions)
+        np.testing.assert_array_equal(step.obs, obs)
+        np.testing.assert_array_equal(step.rewards, rewards)
+        np.testing.assert_array_equal(step.terminated, term)
+        np.testing.assert_array_equal(step.truncated, trunc)
+        np.testing.assert_array_equal(step.costs, costs)
+        np.testing.assert_array_equal(step.final_observations(), final_obs)
+        assert sorted(step.final_obs) == list(np.flatnonzero(ended))
+        ends += int(ended.sum())
+    assert ends >= 9
+
+
+def test_success_flags_follow_gymnasiums_merged_final_info() -> None:
+    assert success_flags({0: {"cost": 0.0}, 2: {}}) == {0: None, 2: None}
+    assert success_flags({0: {"success": True}, 2: {}}) == {0: 1.0, 2: 0.0}
+    assert success_flags({1: {"is_success": 0.0}}) == {1: 0.0}
+
+
+def test_async_stepper_continues_exactly_and_returns_its_envs() -> None:
+    cfg = {"id": "sims/SafetyCarGoal2-v0", "num_envs": 2, "kwargs": {"max_episode_steps": 25}}
+    here, there = make_vec_env(cfg, seed=0), make_vec_env(cfg, seed=0)
+    here.reset(seed=1)
+    there.reset(seed=1)
+    local, remote = VectorStepper(here), AsyncStepper(there)
+    rng = np.random.default_rng(3)
+    try:
+        for _ in range(60):
+            actions = _actions(rng, here)
+            a, b = local.step(actions), remote.step(actions)
+            np.testing.assert_array_equal(a.obs, b.obs)
+            np.testing.assert_array_equal(a.rewards, b.rewards)
+            np.testing.assert_array_equal(a.costs, b.costs)
+            np.testing.assert_array_equal(a.final_observations(), b.final_observations())
+        restored = pickle.loads(remote.env_state())  # the checkpoint's round trip, in the helper
+        pickle.dumps(here)  # ... and the same round trip here
+        actions = _actions(rng, here)
+        np.testing.assert_array_equal(VectorStepper(restored).step(actions).obs,
+                                      local.step(actions).obs)
+        assert remote.busy_seconds > 0
+    finally:
+        remote.close()
+    with pytest.raises(RuntimeError):
+        remote.step(actions)
+
+
+def test_critic_worker_regresses_bit_identically_and_can_be_cancelled() -> None:
+    torch.manual_seed(0)
+    nets = [ValueCritic(5, (8, 8)) for _ in range(2)]
+    copies = [ValueCritic(5, (8, 8)) for _ in range(2)]
+    for net, copy in zip(nets, copies, strict=True):
+        copy.load_state_dict(net.state_dict())
+    opt = torch.optim.Adam([p for n in nets for p in n.parameters()], lr=1e-2, foreach=True)
+    opt_copy = torch.optim.Adam([p for n in copies for p in n.parameters()], lr=1e-2,
+                                foreach=True)
+    targets = CriticTargets(torch.randn(64, 5), torch.randn(64), torch.randn(64))
+    perms = [torch.randperm(64) for _ in range(3)]
+    worker = CriticWorker(*copies, opt_copy)
+    try:
+        for _ in range(2):  # the second round starts from trained Adam state
+            worker.submit(*copies, opt_copy, targets, perms, 16, 1e-3, 0.5)
+            remote = worker.result(*copies, opt_copy)
+            local = regress_critics(*nets, opt, targets, perms, 16, 1e-3, 0.5)
+            assert remote == local
+            for net, copy in zip(nets, copies, strict=True):
+                for p, q in zip(net.parameters(), copy.parameters(), strict=True):
+                    assert torch.equal(p, q)
+        worker.submit(*copies, opt_copy, targets, perms * 200, 1, 1e-3, 0.5)
+        worker.cancel()
+        with pytest.raises(RuntimeError, match="no critic regression"):
+            worker.result(*copies, opt_copy)
+    finally:
+        worker.close()
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sp_ppo_lag", "trpo_lag", "cpo"])
+def test_helper_processes_change_no_number(
+    algo: str, tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    run(tiny_train(algo, *SYNC), tmp_path / "sync")
+    run(tiny_train(algo, *ASYNC), tmp_path / "async")
+    assert _rows(tmp_path / "sync") == _rows(tmp_path / "async")
+    assert not mp.active_children()  # learn() stopped its helpers
+
+
+def test_ppo_early_stop_discards_the_speculative_critic_regression(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    stop_early = "algo.target_kl=1e-9"  # the KL check stops after the first pass
+    run(tiny_train("ppo_lag", stop_early, *SYNC), tmp_path / "sync")
+    run(tiny_train("ppo_lag", stop_early, *ASYNC), tmp_path / "async")
+    rows = _rows(tmp_path / "async")
+    assert {r["update_passes"] for r in rows} == {"1"}
+    assert _rows(tmp_path / "sync") == rows
+
+
+def test_async_resume_matches_the_uninterrupted_sync_run(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path
+) -> None:
+    pymunk = ("env=point_goal1", "env.num_envs=2", "+env.kwargs.max_episode_steps=150",
+              "algo.lr_decay=false")  # the learning rate schedule depends on total_steps
+    run(tiny_train("ppo_lag", *pymunk, *SYNC), tmp_path / "ref")
+    first = tiny_train("ppo_lag", *pymunk, *ASYNC, "total_steps=400")
+    run(first, tmp_path / "split")
+    resumed = tiny_train("ppo_lag", *pymunk, *ASYNC)
+    with open_dict(resumed):
+        resumed.resume = str(tmp_path / "split")
+    saved = tmp_path / "split" / "config.yaml"
+    saved.write_text(saved.read_text().replace("total_steps: 400", "total_steps: 800"))
+    run(resumed, tmp_path / "ignored")
+    assert _rows(tmp_path / "split") == _rows(tmp_path / "ref")
+    assert not mp.active_children()
