@@ -1,4 +1,4 @@
-"""``semdp-bench driving``: env speed and the hand controller across desired speeds (issue 5).
+"""``semdp-bench driving``: env speed and the hand controller across desired speeds (App. A.2).
 
 Two measurements, printed as tables and written to one CSV (``section`` column):
 
@@ -9,7 +9,7 @@ Two measurements, printed as tables and written to one CSV (``section`` column):
   P-control) on both tasks at each desired speed: return (Eq. A.1) and cost (Eq. A.2) per
   episode, mean and standard deviation over ``episodes`` seeded episodes.
 
-Usage (``key=value`` overrides)::
+Usage (``key=value`` arguments, :mod:`semdp.benchmarks.arguments`)::
 
     semdp-bench driving [steps=20000] [repeats=3] [episodes=10] [speeds=[1,2,3,4,5,6]]
                         [out=outputs/bench/driving.csv]
@@ -26,6 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 import sims  # noqa: F401  (registers the env ids)
+from semdp.benchmarks.arguments import as_float, as_int, as_list, parse_args
 from sims.driving import PurePursuitController, run_episode
 
 ENV_IDS = ("sims/DriveCircle-v0", "sims/DriveTrajectory-v0")
@@ -39,18 +40,6 @@ DEFAULTS: dict[str, str] = {
 COLUMNS = ("section", "env_id", "variant", "desired_speed", "episodes", "steps_per_s",
            "return_mean", "return_std", "cost_mean", "cost_std", "cost_episode_fraction",
            "termination_fraction", "mean_speed")
-
-
-def parse_overrides(argv: list[str]) -> dict[str, str]:
-    """Parse ``key=value`` arguments over :data:`DEFAULTS`; raises ValueError on unknown keys."""
-    options = dict(DEFAULTS)
-    for item in argv:
-        key, sep, value = item.partition("=")
-        if not sep or key not in DEFAULTS:
-            raise ValueError(f"unknown argument {item!r}; valid: "
-                             f"{', '.join(f'{k}=...' for k in DEFAULTS)}")
-        options[key] = value
-    return options
 
 
 def steps_per_second(env: gym.Env, steps: int, seed: int = 0) -> float:
@@ -105,12 +94,10 @@ def evaluate_controller(speeds: list[float], episodes: int) -> list[dict[str, ob
 
 def main(argv: list[str]) -> None:
     """Run the suite, print both tables, write the CSV."""
-    try:
-        options = parse_overrides(argv)
-        speeds = [float(v) for v in options["speeds"].strip("[]").split(",") if v.strip()]
-        steps, repeats, episodes = (int(options[k]) for k in ("steps", "repeats", "episodes"))
-    except ValueError as exc:
-        raise SystemExit(f"semdp-bench driving: {exc}") from exc
+    options = parse_args("driving", argv, DEFAULTS)
+    speeds = [as_float({"speeds": v}, "speeds") for v in as_list(options["speeds"])]
+    steps, repeats, episodes = (as_int(options, k, minimum=1)
+                                for k in ("steps", "repeats", "episodes"))
 
     speed_rows = measure_speed(steps, repeats)
     print(f"env steps/s, single env, random actions, {steps} steps, median of {repeats}")

@@ -4,17 +4,17 @@ For each robot x task at one level (default 1) it times random-action steps (act
 beforehand; resets at episode ends included) through ``gymnasium.make`` (single env, with the
 usual wrappers) and through gymnasium vector envs (sync and async), prints a markdown table and
 writes a CSV. ``--calibration`` prints the robot responses against Safety-Gymnasium's measured
-tables (spec file §3). Examples::
+tables (sims/README.md, "Robots and calibration"). ``key=value`` arguments
+(:mod:`semdp.benchmarks.arguments`, which also reads the ``--num-envs 8`` spelling)::
 
     semdp-bench sims
-    semdp-bench sims --steps 20000 --num-envs 8 --csv outputs/bench/sims.csv
-    semdp-bench sims --robots point --tasks push --no-vector
-    semdp-bench sims --calibration
+    semdp-bench sims steps=20000 num_envs=8 csv=outputs/bench/sims.csv
+    semdp-bench sims robots=point tasks=push vector=false
+    semdp-bench sims calibration=true
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import platform
 import time
@@ -24,10 +24,11 @@ import gymnasium
 import numpy as np
 
 import sims  # noqa: F401  (registers the ids)
+from semdp.benchmarks.arguments import BenchArgumentError, as_bool, as_choices, as_int, parse_args
 from sims.safety_gym.calibration import calibration_table, format_table
 from sims.safety_gym.config import LEVELS, ROBOTS, TASKS, env_id
 
-#: Safety-Gymnasium 1.0.0 (MuJoCo) SafetyPointPush1-v0, measured on this machine kind (SPEC §3.1).
+#: Safety-Gymnasium 1.0.0 (MuJoCo) SafetyPointPush1-v0, measured on this machine kind (README.md).
 MUJOCO_POINT_PUSH1_STEPS_PER_S = 390.0
 
 
@@ -60,52 +61,55 @@ def time_vector(name: str, steps: int, num_envs: int, mode: str, seed: int = 0) 
     return batches * num_envs / elapsed
 
 
+#: Keys and defaults: env steps per measurement, level, robots, tasks, sub-envs of the vector
+#: envs, whether to time the vector envs and the async one, the CSV, the calibration table only.
+DEFAULTS: dict[str, str] = {
+    "steps": "20000", "level": "1", "robots": ",".join(ROBOTS), "tasks": ",".join(TASKS),
+    "num_envs": "8", "vector": "true", "async": "true", "csv": "outputs/bench/sims.csv",
+    "calibration": "false",
+}  # fmt: skip
+
+
 def main(argv: list[str]) -> None:
     """Run the benchmark (see the module docstring for the options)."""
-    parser = argparse.ArgumentParser(prog="semdp-bench sims", description=__doc__.split("\n")[0])
-    parser.add_argument("--steps", type=int, default=20000, help="env steps per measurement")
-    parser.add_argument("--level", type=int, default=1, choices=LEVELS)
-    parser.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=ROBOTS)
-    parser.add_argument("--tasks", nargs="+", default=list(TASKS), choices=TASKS)
-    parser.add_argument("--num-envs", type=int, default=8, help="sub-envs of the vector envs")
-    parser.add_argument("--no-vector", action="store_true", help="single env only")
-    parser.add_argument("--no-async", action="store_true", help="skip the async vector env")
-    parser.add_argument("--csv", type=Path, default=Path("outputs/bench/sims.csv"))
-    parser.add_argument("--calibration", action="store_true", help="print the calibration table")
-    args = parser.parse_args(argv)
-    if args.steps < 1 or args.num_envs < 1:
-        parser.error("--steps and --num-envs must be positive")
-
-    if args.calibration:
+    args = parse_args("sims", argv, DEFAULTS)
+    if as_bool(args, "calibration"):
         print("Robot responses, ours vs Safety-Gymnasium 1.0.0 (measured):\n")
         print(format_table(calibration_table()))
         return
+    steps, num_envs = as_int(args, "steps", minimum=1), as_int(args, "num_envs", minimum=1)
+    level = as_int(args, "level")
+    if level not in LEVELS:
+        raise BenchArgumentError(f"semdp-bench sims: level must be one of {LEVELS}, got {level}")
+    robots, tasks = as_choices(args, "robots", ROBOTS), as_choices(args, "tasks", TASKS)
+    vector, async_vector = as_bool(args, "vector"), as_bool(args, "async")
+    csv_path = Path(args["csv"])
 
     rows = []
     header = ["env", "single_steps_per_s", "vs_mujoco", "sync_steps_per_s", "async_steps_per_s"]
-    for robot in args.robots:
-        for task in args.tasks:
-            name = env_id(robot, task, args.level)
-            single = time_single(name, args.steps)
+    for robot in robots:
+        for task in tasks:
+            name = env_id(robot, task, level)
+            single = time_single(name, steps)
             sync = async_ = float("nan")
-            if not args.no_vector:
-                sync = time_vector(name, args.steps, args.num_envs, "sync")
-                if not args.no_async:
-                    async_ = time_vector(name, args.steps, args.num_envs, "async")
+            if vector:
+                sync = time_vector(name, steps, num_envs, "sync")
+                if async_vector:
+                    async_ = time_vector(name, steps, num_envs, "async")
             row = [name, single, single / MUJOCO_POINT_PUSH1_STEPS_PER_S, sync, async_]
             rows.append(row)
             print(f"{name:32s} {single:10.0f} steps/s", flush=True)
 
     print(f"\n{platform.processor() or platform.machine()}, Python {platform.python_version()}, "
-          f"{args.steps} steps each, vector envs with {args.num_envs} sub-envs\n")  # fmt: skip
+          f"{steps} steps each, vector envs with {num_envs} sub-envs\n")  # fmt: skip
     print("| env | single env (steps/s) | × MuJoCo PointPush1 (390/s) | sync vector "
           "| async vector |")  # fmt: skip
     print("|---|---|---|---|---|")
     for name, single, ratio, sync, async_ in rows:
         print(f"| {name} | {single:,.0f} | {ratio:.0f}× | {sync:,.0f} | {async_:,.0f} |")
-    args.csv.parent.mkdir(parents=True, exist_ok=True)
-    with args.csv.open("w", newline="") as handle:
+    csv_path.parent.mkdir(parents=True, exist_ok=True)
+    with csv_path.open("w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(header)
         writer.writerows(rows)
-    print(f"\nwrote {args.csv}")
+    print(f"\nwrote {csv_path}")
