@@ -30,6 +30,12 @@ REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 
 
+def _script(name: str) -> str:
+    """A console script of this environment (beside the interpreter, else on PATH)."""
+    path = BIN / name
+    return str(path) if path.is_file() else (shutil.which(name) or name)
+
+
 def _run(*args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
     proc = subprocess.run([*args], cwd=REPO, text=True, capture_output=True, timeout=600)
     if check:
@@ -42,8 +48,8 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A ``budget=ci`` SEMDP run and a ``budget=ci`` PPO-Lag run."""
     root = tmp_path_factory.mktemp("runs")
     out = {"semdp": root / "semdp", "ppo_lag": root / "ppo_lag"}
-    _run(str(BIN / "semdp-train"), "experiment=semdp", "budget=ci", f"hydra.run.dir={out['semdp']}")
-    _run(str(BIN / "semdp-train"), "algo=ppo_lag", "env=point_goal1", "budget=ci",
+    _run(_script("semdp-train"), "experiment=semdp", "budget=ci", f"hydra.run.dir={out['semdp']}")
+    _run(_script("semdp-train"), "algo=ppo_lag", "env=point_goal1", "budget=ci",
          f"hydra.run.dir={out['ppo_lag']}")
     return out
 
@@ -66,7 +72,7 @@ def _read_frames(path: Path) -> list[np.ndarray]:
 
 def test_semdp_run_evaluates_with_plan_statistics_and_an_mp4(runs: dict[str, Path]) -> None:
     before = _eval_dirs(runs["semdp"])
-    proc = _run(str(BIN / "semdp-eval"), str(runs["semdp"]), "episodes=3", "lambda=fixed",
+    proc = _run(_script("semdp-eval"), str(runs["semdp"]), "episodes=3", "lambda=fixed",
                 "video=true", "video_every=5")
     (out_dir,) = sorted(set(_eval_dirs(runs["semdp"])) - set(before))
     assert str(out_dir) in proc.stdout
@@ -175,7 +181,7 @@ def test_bad_arguments_from_the_console_script(
     runs: dict[str, Path], tmp_path: Path, case: int
 ) -> None:
     run, args, message = BAD[case]
-    proc = _run(str(BIN / "semdp-eval"), str(_bad_run_dir(runs, tmp_path, run)), *args,
+    proc = _run(_script("semdp-eval"), str(_bad_run_dir(runs, tmp_path, run)), *args,
                 check=False)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]

@@ -24,6 +24,12 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
+
+
+def _script(name: str) -> str:
+    """A console script of this environment (beside the interpreter, else on PATH)."""
+    path = BIN / name
+    return str(path) if path.is_file() else (shutil.which(name) or name)
 SWEEP = ["algo=ppo_lag", "env=point_goal1", "budget=ci", "seed=0,1"]
 #: One machine: Ray resolves 127.0.0.1 to the host's routable address unless this is 0.
 LOOPBACK_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0"}
@@ -39,7 +45,7 @@ def _sweep(sweep_dir: Path, *launcher: str, env: dict[str, str] | None = None) -
     """Run the 2-job sweep; check both run directories; return its wall time."""
     start = time.perf_counter()
     proc = subprocess.run(
-        [str(BIN / "semdp-train"), "-m", *SWEEP, *launcher, f"hydra.sweep.dir={sweep_dir}"],
+        [_script("semdp-train"), "-m", *SWEEP, *launcher, f"hydra.sweep.dir={sweep_dir}"],
         cwd=REPO, text=True, capture_output=True, timeout=600, env={**os.environ, **(env or {})},
     )
     wall = time.perf_counter() - start
@@ -81,7 +87,7 @@ def test_ray_launcher_runs_a_two_job_ci_sweep_on_a_local_cluster(tmp_path: Path)
     env = {**os.environ, **LOOPBACK_ENV}
     with log.open("wb") as out:
         head = subprocess.Popen(
-            [str(BIN / "ray"), "start", "--head", "--block", "--node-ip-address=127.0.0.1",
+            [_script("ray"), "start", "--head", "--block", "--node-ip-address=127.0.0.1",
              f"--port={port}", "--num-cpus=2", "--include-dashboard=false",
              "--disable-usage-stats", f"--temp-dir={temp_dir}"],
             stdout=out, stderr=subprocess.STDOUT, env=env, start_new_session=True,
