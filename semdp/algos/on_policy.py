@@ -38,6 +38,7 @@ from semdp.common.critic_worker import CriticWorker
 from semdp.common.forked_worker import fork_available
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
+from semdp.common.optim import FlatAdam
 from semdp.common.vector_stepping import MergedInfoStepper, VectorStepper, stepper_for
 
 logger = logging.getLogger(__name__)
@@ -142,9 +143,8 @@ class OnPolicyAlgorithm(Algorithm):
         self.actor = GaussianActor(self.obs_dim, self.act_dim, hidden, activation, log_std_init)
         self.critic_r = ValueCritic(self.obs_dim, hidden, activation)
         self.critic_c = ValueCritic(self.obs_dim, hidden, activation)
-        self.critic_optimizer = torch.optim.Adam(
-            [*self.critic_r.parameters(), *self.critic_c.parameters()], lr=critic_lr,
-            foreach=True,
+        self.critic_optimizer = FlatAdam(
+            [*self.critic_r.parameters(), *self.critic_c.parameters()], lr=critic_lr
         )
         self.normalizer = RunningNormalizer((self.obs_dim,), clip=obs_clip, enabled=obs_normalize)
         self.buffer = RolloutBuffer(self.n_steps, self.num_envs, self.obs_dim, self.act_dim)

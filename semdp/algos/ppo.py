@@ -22,6 +22,7 @@ import torch
 
 from semdp.algos.on_policy import OnPolicyAlgorithm
 from semdp.common.buffers import RolloutBatch
+from semdp.common.optim import FlatAdam, clip_grad_norm
 
 
 class PPO(OnPolicyAlgorithm):
@@ -74,8 +75,7 @@ class PPO(OnPolicyAlgorithm):
         self.actor_lr, self.lr_decay = actor_lr, lr_decay
         self.clip_range, self.update_iters = clip_range, update_iters
         self.num_minibatches, self.target_kl, self.ent_coef = num_minibatches, target_kl, ent_coef
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=actor_lr,
-                                                foreach=True)
+        self.actor_optimizer = FlatAdam(self.actor.parameters(), lr=actor_lr)
 
     def policy_advantage(self, batch: RolloutBatch) -> torch.Tensor:
         """The advantage the actor ascends; PPO uses A_r (PPO-Lag overrides)."""
@@ -108,6 +108,7 @@ class PPO(OnPolicyAlgorithm):
                 group["lr"] = self.actor_lr * max(frac, 0.0)
         n = batch.obs.shape[0]
         mb = max(1, n // self.num_minibatches)
+        actor_params = list(self.actor.parameters())
         loss_pi, entropy, kl, passes = torch.tensor(0.0), torch.tensor(0.0), 0.0, 0
         for _ in range(self.update_iters):
             perm = torch.randperm(n)
@@ -123,8 +124,7 @@ class PPO(OnPolicyAlgorithm):
                 self.actor_optimizer.zero_grad()
                 loss_pi.backward()
                 if self.max_grad_norm is not None:
-                    torch.nn.utils.clip_grad_norm_(self.actor.parameters(), self.max_grad_norm,
-                                                   foreach=True)
+                    clip_grad_norm(actor_params, self.max_grad_norm)
                 self.actor_optimizer.step()
             passes += 1
             with torch.no_grad():  # k3 estimator of KL(old || new), Schulman's blog

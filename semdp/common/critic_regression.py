@@ -14,6 +14,8 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from semdp.common.optim import clip_grad_norm
+
 
 class CriticTargets(NamedTuple):
     """What the critics regress on: normalised observations and both GAE returns."""
@@ -70,6 +72,6 @@ def regress_critics(
             optimizer.zero_grad()
             (loss_v + loss_vc + l2 * weight_norm).backward()
             if max_grad_norm is not None:
-                torch.nn.utils.clip_grad_norm_(params, max_grad_norm, foreach=True)
+                clip_grad_norm(params, max_grad_norm)
             optimizer.step()
     return loss_v.item(), loss_vc.item()
