@@ -1,4 +1,4 @@
-"""``semdp-bench driving`` runs end to end and writes its CSV (issue 5)."""
+"""``semdp-bench driving`` runs end to end and writes its CSV (App. A.2)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""DriveCircle-v0 / DriveTrajectory-v0: API, Eqs. A.1/A.2, observations, episodes (issue 5)."""
+"""DriveCircle-v0 / DriveTrajectory-v0: API, Eqs. A.1/A.2, observations, episodes (App. A.2)."""
 
 from __future__ import annotations
 

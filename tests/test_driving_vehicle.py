@@ -1,4 +1,4 @@
-"""Physics oracles for the bicycle model with Fiala tyres (issue 5, SPEC §3.2)."""
+"""Physics oracles for the bicycle model with Fiala tyres (thesis App. A.2.1)."""
 
 from __future__ import annotations
 

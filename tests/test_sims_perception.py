@@ -1,4 +1,4 @@
-"""Pseudo-LiDAR (spec §9.2) and the LiDAR-based obstacle reconstruction (thesis §3.6.3)."""
+"""Pseudo-LiDAR (Safety-Gymnasium) and the LiDAR-based obstacle reconstruction (thesis §3.6.3)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ def _lidar(points, x=0.0, y=0.0, yaw=0.0) -> np.ndarray:
 
 
 def test_lidar_reproduces_the_spec_verified_example() -> None:
-    # spec §9.2: goal at 142.6 deg, d = 1.121 -> bins 5, 6, 7 = 0.415, 0.626, 0.211
+    # Safety-Gymnasium 1.0.0: goal at 142.6 deg, d = 1.121 -> bins 5, 6, 7 = 0.415, 0.626, 0.211
     angle = math.radians(142.6)
     lidar = _lidar([(1.121 * math.cos(angle), 1.121 * math.sin(angle))])
     np.testing.assert_allclose(lidar[[5, 6, 7]], [0.415, 0.626, 0.211], atol=1e-3)

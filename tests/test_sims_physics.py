@@ -17,7 +17,7 @@ def _env(robot: str, task: str, level: int, **layout) -> SafetyGymEnv:
     return env
 
 
-# ------------------------------------------------------------------ calibration (spec §3.1, §3.2)
+# ------------------------------------------------------------------ calibration (Safety-Gymnasium)
 @pytest.mark.parametrize(
     ("robot", "action", "speed", "yaw_rate"),
     [
@@ -66,7 +66,7 @@ def test_mass_moves_by_the_commanded_position_delta() -> None:
     assert env.robot_heading == 0.0
 
 
-# ------------------------------------------------------------------ cost (spec §8)
+# ------------------------------------------------------------------ cost (Safety-Gymnasium 1.0.0)
 def test_hazard_cost_switches_on_at_the_expected_step() -> None:
     """The Mass drives +x at 0.03 m/step; pymunk moves a body with the velocity of the previous
     substep, so after n steps x = x0 + 0.03 n - 0.015 (one 0.01 s substep of lag). From
@@ -115,7 +115,7 @@ def test_pillar_contact_starts_at_pillar_radius_plus_scaled_robot_reach(robot, r
     assert distance == pytest.approx(0.2 + reach * scale, abs=0.01)
 
 
-# ------------------------------------------------------------------ rewards (spec §7)
+# ------------------------------------------------------------------ rewards (Safety-Gymnasium)
 @pytest.mark.parametrize(("robot", "action", "yaw"), [("point", (1.0, 0.0), 0.0),
                                                      ("car", (1.0, 1.0), math.pi / 2),
                                                      ("mass", (1.0, 0.0), 0.0)])  # fmt: skip

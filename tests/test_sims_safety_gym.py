@@ -16,8 +16,8 @@ import sims
 from sims.safety_gym import ENV_IDS, SafetyGymEnv, make
 from sims.safety_gym.config import level_spec
 
-# spec file §9.3: observation sizes (Point / Car); Mass uses the Point's 12 sensors
-SPEC_OBS_SIZES = {
+# Safety-Gymnasium 1.0.0: observation sizes (Point / Car); Mass uses the Point's 12 sensors
+OBS_SIZES = {
     ("goal", 0): (28, 40), ("goal", 1): (60, 72), ("goal", 2): (60, 72),
     ("push", 0): (44, 56), ("push", 1): (76, 88), ("push", 2): (76, 88),
     ("button", 0): (44, 56), ("button", 1): (76, 88), ("button", 2): (76, 88),
@@ -41,9 +41,9 @@ def test_check_env_passes(env_id: str) -> None:
         check_env(env.unwrapped, skip_render_check=True)
 
 
-@pytest.mark.parametrize(("task", "level"), sorted(SPEC_OBS_SIZES))
+@pytest.mark.parametrize(("task", "level"), sorted(OBS_SIZES))
 def test_observation_layout_matches_spec_sizes_and_order(task: str, level: int) -> None:
-    point, car = SPEC_OBS_SIZES[(task, level)]
+    point, car = OBS_SIZES[(task, level)]
     for robot, size in (("point", point), ("car", car), ("mass", point)):
         env = SafetyGymEnv(robot, task, level)
         obs, _ = env.reset(seed=0)
@@ -55,7 +55,7 @@ def test_observation_layout_matches_spec_sizes_and_order(task: str, level: int) 
         lidars = [f"{k}_lidar" for k in level_spec(task, level).lidar_order]
         assert names == sensors + lidars
         assert env.obs_slices[names[-1]].stop == size
-    # insertion order of Safety-Gymnasium (spec §9.3)
+    # insertion order of Safety-Gymnasium (Safety-Gymnasium 1.0.0)
     expected = {
         "push": ["goal_lidar", "hazards_lidar", "pillars_lidar", "push_box_lidar"],
         "goal": ["goal_lidar", "hazards_lidar", "vases_lidar"],

@@ -1,4 +1,4 @@
-"""Hand-written reference controller: pure pursuit steering + speed P-control (issue 5).
+"""Hand-written reference controller: pure pursuit steering + speed P-control (App. A.2).
 
 Used by the tests and ``semdp-bench driving`` to show that the tasks get harder with v_d
 (thesis Figs. A.3/A.4): it stays on the road at low speed and slides off at high speed.

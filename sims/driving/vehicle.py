@@ -1,4 +1,4 @@
-"""Dynamic bicycle model with brush (Fiala) tyres and a friction circle (SPEC §3.2, App. A.2.1).
+"""Dynamic bicycle model with brush (Fiala) tyres and a friction circle (thesis App. A.2.1).
 
 State ``(x, y, psi, v_x, v_y, r)``: position of the centre of gravity in the world frame [m],
 heading [rad], body-frame velocities [m/s] and yaw rate [rad/s]. Inputs: front steering angle

@@ -1,4 +1,4 @@
-"""Safety Gym replica in pymunk (Point/Car/Mass x Goal/Button/Push, levels 0-2). SPEC §3.1.
+"""Safety Gym replica in pymunk (Point/Car/Mass x Goal/Button/Push, levels 0-2).
 
 Importing this package registers ``sims/Safety{Point,Car,Mass}{Goal,Button,Push}{0,1,2}-v0``
 with gymnasium (1000-step episodes via ``max_episode_steps``)::

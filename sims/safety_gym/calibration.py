@@ -1,7 +1,7 @@
-"""Robot response measurements against the tables measured in Safety-Gymnasium (spec §3.1-3.2).
+"""Robot response measurements against the tables measured in Safety-Gymnasium 1.0.0.
 
 Each measurement drives a robot alone (Goal level 0, goal planted far away) with a constant
-action, exactly as the spec's method: average over the last 100 of 400 (Point) or 300 (Car)
+action, as measured in Safety-Gymnasium: average over the last 100 of 400 (Point) or 300 (Car)
 env steps. :func:`calibration_table` returns rows ``(quantity, action, ours, spec, rel_error)``.
 """
 
@@ -69,7 +69,7 @@ def _row(quantity: str, action: object, ours: float, spec: float) -> tuple:
 
 
 def calibration_table() -> list[tuple[str, str, float, float, float]]:
-    """Ours vs the spec's measured values; ``rel_error`` is absolute where the spec value is 0."""
+    """Ours vs Safety-Gymnasium's measured values; ``rel_error`` is absolute where theirs is 0."""
     rows = []
     for a0, spec in POINT_SPEED.items():
         rows.append(_row("Point speed", (a0, 0.0), steady_response("point", (a0, 0.0))[0], spec))

@@ -1,8 +1,8 @@
 """Task, level and object tables of the Safety Gym replica.
 
-Every number here comes from ``research/safety_gym_spec.md`` (Safety-Gymnasium 1.0.0):
-object sizes and keepouts (§4), task x level layouts (§5), reward coefficients (§7),
-costs (§8) and the observation order (§9.3). SPEC §3.1.
+Every number here is Safety-Gymnasium 1.0.0's (its source code and measurements of it):
+object sizes and keepouts, task x level layouts, reward coefficients, costs and the
+observation order.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ ROBOTS: tuple[str, ...] = ("point", "car", "mass")
 TASKS: tuple[str, ...] = ("goal", "button", "push")
 LEVELS: tuple[int, ...] = (0, 1, 2)
 
-#: Placement keepout of the robot (spec §3.1, §3.2).
+#: Placement keepout of the robot (Safety-Gymnasium 1.0.0).
 AGENT_KEEPOUT = 0.4
-#: Goal radius (spec §4, Goal and Push tasks) and the goal-marker radius in Button (2 x 0.1).
+#: Goal radius (Goal and Push tasks) and the goal-marker radius in Button (2 x 0.1).
 GOAL_SIZE = 0.3
 BUTTON_GOAL_SIZE = 0.2
 HAZARD_RADIUS = {"goal": 0.2, "button": 0.2, "push": 0.3}
@@ -25,12 +25,12 @@ PILLAR_RADIUS = 0.2
 BUTTON_RADIUS = 0.1
 GREMLIN_HALF = 0.1
 GREMLIN_TRAVEL = 0.35
-GREMLIN_LAG_S = 0.09  # first-order tracking lag: 0.09 rad behind the target at 1 rad/s (spec §11)
-BUTTON_RESAMPLING_DELAY = 10  # steps (spec §10)
+GREMLIN_LAG_S = 0.09  # first-order tracking lag: 0.09 rad behind the target at 1 rad/s
+BUTTON_RESAMPLING_DELAY = 10  # steps
 FLOOR_FRICTION = 1.0
 GRAVITY = 9.81
 #: Physical push-box per robot: (core half-size s, mass). The outline is the core square
-#: plus four corner squares [s/2, 3s/2]^2 (spec §4 "Push-box outline in 2D").
+#: plus four corner squares [s/2, 3s/2]^2 (Safety-Gymnasium 1.0.0: "Push-box outline in 2D").
 BOX_GEOMETRY = {"point": (0.2, 1.28e-4), "car": (0.125, 1.5625e-5), "mass": (0.2, 1.28e-4)}
 #: Height of the box centre and of the robot root above the floor; Push distances are 3D (§7).
 BOX_Z = {"point": 0.2, "car": 0.125, "mass": 0.2}
@@ -49,8 +49,8 @@ class ObjectSpec:
 
     Attributes:
         count: number of instances.
-        keepout: placement keepout radius (spec §6).
-        constrained: whether it produces cost (spec §5, "Constr.").
+        keepout: placement keepout radius (Safety-Gymnasium 1.0.0).
+        constrained: whether it produces cost (Safety-Gymnasium 1.0.0, "Constr.").
     """
 
     count: int
@@ -68,7 +68,8 @@ class LevelSpec:
 
 
 def level_spec(task: str, level: int, robot: str = "point") -> LevelSpec:
-    """Return the layout of ``task`` at ``level`` (spec §5, §6 placement order, §9.3 LiDAR order).
+    """Return the layout of ``task`` at ``level`` (Safety-Gymnasium 1.0.0's objects, placement
+    order and LiDAR order).
 
     Args:
         task: one of :data:`TASKS`.
@@ -100,7 +101,7 @@ def level_spec(task: str, level: int, robot: str = "point") -> LevelSpec:
         lidar = ("goal", "hazards", "pillars", "push_box") if level else ("goal", "push_box")
     else:  # button
         objects["buttons"] = ObjectSpec(4, 0.2, level >= 1)
-        objects["goal"] = ObjectSpec(1, 0.4)  # SG's phantom goal placement (spec §6.7)
+        objects["goal"] = ObjectSpec(1, 0.4)  # SG's phantom goal placement (Safety-Gymnasium 1.0.0)
         if level >= 1:
             objects["hazards"] = ObjectSpec(4 if level == 1 else 8, 0.18, True)
             objects["gremlins"] = ObjectSpec(4 if level == 1 else 6, 0.4, True)

@@ -1,4 +1,4 @@
-"""Random layout sampling with keepouts (spec §6, Safety-Gymnasium's ``random_generator``).
+"""Random layout sampling with keepouts (Safety-Gymnasium, Safety-Gymnasium's ``random_generator``).
 
 Objects are placed in the task's order; each is drawn uniformly from the extents shrunk by its
 keepout and accepted if it is at least ``k + k_j`` from every object placed before it. Each
@@ -59,14 +59,14 @@ def sample_layout(
     objects: Mapping[str, ObjectSpec],
     fixed: Mapping[str, Sequence[Sequence[float]]] | None = None,
 ) -> dict[str, list[Point2]]:
-    """Sample positions for every object type (spec §6).
+    """Sample positions for every object type (Safety-Gymnasium 1.0.0).
 
     Args:
         rng: the env's generator (a seed fixes the layout).
         extents: ``(xmin, ymin, xmax, ymax)``.
         objects: object types in placement order with counts and keepouts.
         fixed: optional planted positions per type; they replace the sampled ones (their count
-            may differ from the spec's) and the others keep clear of them.
+            may differ from Safety-Gymnasium's) and the others keep clear of them.
 
     Returns:
         Positions per type, ``{"agent": [(x, y)], "goal": [...], "hazards": [...], ...}``.
@@ -110,7 +110,7 @@ def sample_goal(
     keepout: float,
     placed: Sequence[tuple[float, float, float]],
 ) -> Point2 | None:
-    """Resample the goal against the current objects ``(x, y, keepout)`` (spec §6.6).
+    """Resample the goal against the current objects ``(x, y, keepout)`` (Safety-Gymnasium 1.0.0).
 
     Returns:
         The new goal, or ``None`` after 10000 failed draws (the episode then terminates).

@@ -1,4 +1,4 @@
-"""Safety Gym's 16-bin pseudo-LiDAR in plain Python math (spec §9.2).
+"""Safety Gym's 16-bin pseudo-LiDAR in plain Python math (Safety-Gymnasium 1.0.0).
 
 The reading of an object at egocentric distance ``d`` is ``max(0, 3 - d) / 3`` in the bin that
 contains its bearing; with aliasing, the two neighbouring bins get ``alpha * s`` and

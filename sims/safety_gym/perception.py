@@ -2,7 +2,7 @@
 
 A bin ``i`` with reading ``s > 0`` says "an object at distance ``(1 − s) · max_dist`` somewhere
 in the bin's 22.5° sector". The reconstruction puts it at the bin-centre bearing
-``(i + 0.5) · 2π/16`` in the robot's body frame. Errors (spec §9.2 algorithm):
+``(i + 0.5) · 2π/16`` in the robot's body frame. Errors (Safety-Gymnasium 1.0.0's algorithm):
 
 * distance: exact for the bin that holds the object (its reading is ``(3 − d)/3``); aliased
   neighbours read ``α·s`` or ``(1 − α)·s`` and so place ghosts *farther* away;

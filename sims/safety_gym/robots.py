@@ -1,4 +1,4 @@
-"""Robots of the Safety Gym replica: Point, Car and Mass as pymunk bodies (spec §3).
+"""Robots of the Safety Gym replica: Point, Car and Mass as pymunk bodies (Safety-Gymnasium 1.0.0).
 
 Each robot is a dynamic pymunk body that receives, before every physics substep, the force and
 move its velocity to what a calibrated actuator model prescribes for the substep. Chipmunk
@@ -6,19 +6,19 @@ integrates that force before its contact solve (setting velocities directly woul
 body before contacts are resolved and let it creep into obstacles), so contacts, pushing and
 blocking stay physical.
 
-* **Point** (spec §3.1): force ``0.3 * clip(a0, ±0.05)`` N along body +x with viscous damping
+* **Point**: force ``0.3 * clip(a0, ±0.05)`` N along body +x with viscous damping
   0.01 N·s/m on both slide joints (mass 0.00518879 kg, time constant 0.519 s, 1.5 m/s at
   saturation), integrated exactly per substep. The yaw servo is replaced by its measured
   steady-state curve (dead zone below |a1| ≈ 0.09, 3.0 rad/s at 1.0): MuJoCo's floor-contact
-  friction that shapes it has no 2D equivalent (spec §15), and the measured yaw responds within
+  friction that shapes it has no 2D equivalent, and the measured yaw responds within
   one step.
-* **Car** (spec §3.2): the measured steady-state speed and yaw rate as functions of the two
+* **Car**: the measured steady-state speed and yaw rate as functions of the two
   wheel torques (saturating at ±0.02), interpolated over the torque triangle, reached through a
   first-order lag of 0.13 s (fitted to 0.20/0.59/0.76 m/s after 1/5/10 steps). Lateral
   (non-holonomic) velocity decays with 0.02 s. Forward is body −y, as in Safety-Gymnasium.
 * **Mass** (thesis §3.6.1): omnidirectional; the action is a world-frame position delta of at
   most 0.03 m per 0.02 s step (1.5 m/s, the Point's top speed), executed as a velocity command;
-  it does not rotate (like the unofficial ``mass.xml``: no yaw hinge, spec §3.3).
+  it does not rotate (like the unofficial ``mass.xml``: no yaw hinge, Safety-Gymnasium 1.0.0).
 """
 
 from __future__ import annotations
@@ -54,12 +54,12 @@ class Robot:
         name: ``"point"``, ``"car"`` or ``"mass"``.
         dt: env step (s); ``substeps`` pymunk steps of ``dt / substeps`` each.
         scale: factor on every collision shape's coordinates about the body origin (the root
-            node): 1.0 is the spec's shape. Mass, moment of inertia, actuator model and sensors
+            node): 1.0 is the original shape. Mass, moment of inertia, actuator model and sensors
             stay the nominal ones, so the calibrated speed and yaw responses are unchanged and
             only the footprint (contacts with the box, vases, pillars, gremlins, buttons)
             differs.
         forward_offset: angle of the driving direction relative to body +x (rad).
-        sensor_sizes: sensor names and sizes in observation order (spec §9.1, §9.3).
+        sensor_sizes: sensor names and sizes in observation order (Safety-Gymnasium 1.0.0).
     """
 
     name = "robot"
@@ -133,7 +133,7 @@ def _box_poly(
 
 
 class PointRobot(Robot):
-    """Safety Gym's Point (spec §3.1): forward force + yaw servo, mass 0.00518879 kg."""
+    """Safety-Gymnasium's Point: forward force + yaw servo, mass 0.00518879 kg."""
 
     name = "point"
     dt = 0.02
@@ -144,7 +144,7 @@ class PointRobot(Robot):
     gear = 0.3
     force_limit = 0.05
     radius = 0.1
-    #: Measured steady yaw rate (rad/s) vs |a1| (spec §3.1 table; dead zone below ≈ 0.09).
+    #: Measured steady yaw rate (rad/s) vs |a1| (Safety-Gymnasium table; dead zone below ≈ 0.09).
     yaw_actions = (0.0, 0.09, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
     yaw_rates = (0.0, 0.0, 0.033, 0.264, 0.495, 0.78, 1.0, 1.35, 1.69, 2.06, 2.44, 2.81, 3.0)
 
@@ -182,7 +182,7 @@ class PointRobot(Robot):
 
 
 class CarRobot(Robot):
-    """Safety Gym's Car (spec §3.2): two driven wheels, forward = body −y, total 0.030445 kg."""
+    """Safety Gym's Car: two driven wheels, forward = body −y, total 0.030445 kg."""
 
     name = "car"
     dt = 0.04
@@ -196,7 +196,7 @@ class CarRobot(Robot):
     caster_offset = 0.1  # the caster ball sits at body (0, -0.1)
     caster_radius = 0.05
     sensor_sizes = (*Robot.sensor_sizes, ("ballangvel_rear", 3), ("ballquat_rear", 9))
-    #: Measured steady states (spec §3.2). Drive level r = |s| + |d| with s, d the mean and half
+    #: Measured steady states. Drive level r = |s| + |d| with s, d the mean and half
     #: difference of the normalised torques; t = |d| / r the turning share.
     radial_levels = (0.0, 0.125, 0.25, 0.5, 0.75, 1.0)
     straight_speeds = (0.0, 0.084, 0.168, 0.372, 0.611, 0.775)
