@@ -1,4 +1,4 @@
-"""``semdp-train``: the Hydra training app (SPEC §4.3, §5).
+"""``semdp-train``: the Hydra training app (docs/design.md).
 
     semdp-train algo=ppo_lag env=point_goal1 seed=0 cost_limit=25
     semdp-train -m algo=ppo_lag,sp_ppo_lag seed=0,1,2      # joblib launcher, 2 jobs

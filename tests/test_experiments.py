@@ -1,4 +1,4 @@
-"""Experiment presets (conf/experiment/, conf/method/) and their evaluation helpers (SPEC §5)."""
+"""Experiment presets (conf/experiment/, conf/method/) and their evaluation helpers (thesis §3.6, App. B)."""
 
 from __future__ import annotations
 

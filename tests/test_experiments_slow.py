@@ -1,5 +1,5 @@
 """End to end: every experiment preset at the `ci` budget, then `semdp-report` on its sweep
-directory (issue 8 acceptance). The launcher sweeps (submitit, Ray) are in the default suite:
+directory. The launcher sweeps (submitit, Ray) are in the default suite:
 tests/test_launchers.py.
 
     python -m pytest -m slow tests/test_experiments_slow.py -q
@@ -58,7 +58,7 @@ def read_table(path: Path) -> tuple[list[str], dict[tuple[str, str], list[str]]]
     return columns, rows
 
 
-#: Robots whose SEMDP follower weights are committed (the Car follower is trained by issue 7).
+#: Robots whose SEMDP follower weights are committed .
 ROBOTS = [r for r in ("mass", "point", "car")
           if r == "mass" or (REPO / "semdp" / "embedded" / "weights" / f"{r}.pt").is_file()]
 

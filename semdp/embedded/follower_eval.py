@@ -1,4 +1,4 @@
-"""Measure a trajectory follower (issue 7 acceptance; thesis App. B.2.2, B.2.4).
+"""Measure a trajectory follower (thesis App. B.2.2, B.2.4).
 
     python -m semdp.embedded.follower_eval --robot point --trials 200
     python -m semdp.embedded.follower_eval --robot mass --trials 200      # P-controller

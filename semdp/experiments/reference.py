@@ -1,4 +1,4 @@
-"""Turn a finished sweep into a committed reference folder (issue 8 deliverable 3).
+"""Turn a finished sweep into a committed reference folder (outputs/reference/README.md).
 
     python -m semdp.experiments.reference <sweep dir> outputs/reference/<preset> [--order ...]
 

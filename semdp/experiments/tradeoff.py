@@ -1,4 +1,4 @@
-"""The eps' trade-off of a trained SEMDP policy (thesis App. B.1.1, Fig. B.1; SPEC §4.2).
+"""The eps' trade-off of a trained SEMDP policy (thesis App. B.1.1, Fig. B.1).
 
 At test time the planner's clearance eps' (Eq. 3.2; ``clearance`` of ``conf/planner/*.yaml``)
 sets how far plans keep from the obstacles: a smaller eps' gives a less conservative agent.
