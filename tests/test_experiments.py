@@ -1,4 +1,4 @@
-"""Experiment presets (conf/experiment/, conf/method/) and their evaluation helpers (thesis §3.6, App. B)."""
+"""Experiment presets (conf/experiment/, conf/method/) and their evaluation helpers (§3.6)."""
 
 from __future__ import annotations
 
