@@ -23,7 +23,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
-from hydra.utils import instantiate
+from hydra.utils import get_class, instantiate
 from omegaconf import OmegaConf
 
 import semdp.testbed  # noqa: F401  (registers semdp/SpeedLimit-v0)
@@ -112,7 +112,9 @@ def make_vec_env(
     Args:
         env_cfg: mapping with ``id``, ``num_envs``, ``kwargs`` (dict), optional ``wrapper`` (a
             callable, or a Hydra node with ``_target_`` and ``_partial_: true`` applied to each
-            sub-env before vectorisation) and optional ``add_zero_cost``.
+            sub-env before vectorisation), optional ``add_zero_cost`` and optional ``vector``
+            (dotted path of a vector env class built like ``SyncVectorEnv``; default
+            ``SyncVectorEnv``).
         seed: seeds the action spaces; the algorithm seeds ``reset``.
         num_envs: overrides ``env_cfg["num_envs"]``.
         evaluation: build the evaluation env: uses ``env_cfg["eval_wrapper"]`` when it is set
@@ -133,9 +135,9 @@ def make_vec_env(
         plain_wrapper(wrapper),
         bool(env_cfg.get("add_zero_cost", False)),
     )
-    envs = gym.vector.SyncVectorEnv(
-        [factory] * n, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
-    )
+    # Optional ``vector``: a class built like SyncVectorEnv (e.g. the SEMDP lockstep one).
+    vector_cls = get_class(env_cfg["vector"]) if env_cfg.get("vector") else gym.vector.SyncVectorEnv
+    envs = vector_cls([factory] * n, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
     envs.action_space.seed(seed)
     for i, sub in enumerate(envs.envs):
         sub.action_space.seed(seed + i)

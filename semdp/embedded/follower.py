@@ -110,15 +110,21 @@ class PolicyFollower:
             )
         self._slices = [obs_slices[name] for name in self.sensor_slices]
 
-    def act(
+    def network_input(
         self, obs: np.ndarray, robot_position: np.ndarray, robot_heading: float, target: np.ndarray
     ) -> np.ndarray:
-        """Deterministic action of the goal-conditioned policy for ``target``."""
+        """The policy's normalised input for ``target`` (float32, shape ``(obs_dim,)``)."""
         if self._slices is None:
             raise RuntimeError("PolicyFollower.bind(env.obs_slices) must be called first")
         sensors = np.concatenate([obs[s] for s in self._slices])
         x = follower_observation(sensors, robot_position, robot_heading, target)
-        x = np.clip((x - self.obs_mean) / self.obs_std, -self.obs_clip, self.obs_clip)
+        return np.clip((x - self.obs_mean) / self.obs_std, -self.obs_clip, self.obs_clip)
+
+    def act(
+        self, obs: np.ndarray, robot_position: np.ndarray, robot_heading: float, target: np.ndarray
+    ) -> np.ndarray:
+        """Deterministic action of the goal-conditioned policy for ``target``."""
+        x = self.network_input(obs, robot_position, robot_heading, target)
         with torch.no_grad():
             action = self.actor(torch.as_tensor(x, dtype=torch.float32)[None])[0]
         return action.numpy()

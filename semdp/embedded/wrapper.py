@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
@@ -15,6 +16,30 @@ from solvers.planner import SafeTrajectoryPlanner
 
 #: Timing counters kept by :class:`SafetyEmbeddedEnv` (seconds, summed over its lifetime).
 TIMING_KEYS: tuple[str, ...] = ("perception_s", "plan_s", "follow_s", "sim_s")
+
+
+@dataclass
+class Window:
+    """One high-level step in progress (Alg. 2: a plan followed for up to k low-level steps)."""
+
+    plan: Any
+    waypoints: np.ndarray
+    subgoal: np.ndarray
+    n_obstacles: int
+    obs: np.ndarray
+    perception_s: float = 0.0
+    plan_s: float = 0.0
+    follow_s: float = 0.0
+    sim_s: float = 0.0
+    index: int = 0
+    steps: int = 0
+    reward: float = 0.0
+    cost: float = 0.0
+    goal_met: bool = False
+    terminated: bool = False
+    truncated: bool = False
+    info: dict[str, Any] = field(default_factory=dict)
+    cost_terms: dict[str, float] = field(default_factory=dict)
 
 
 class SafetyEmbeddedEnv(gym.Wrapper):
@@ -147,6 +172,23 @@ class SafetyEmbeddedEnv(gym.Wrapper):
 
     def step(self, action):
         """Plan to the subgoal, follow the plan for k steps, return the summed reward."""
+        window = self.begin_window(action)
+        for _ in range(self.k):
+            t0 = time.perf_counter()
+            obs, position, heading, target = self.tracking_target(window)
+            low_action = self.follower.act(obs, position, heading, target)
+            window.follow_s += time.perf_counter() - t0
+            if self.low_level_step(window, low_action):
+                break
+        return self.end_window(window)
+
+    # ------------------------------------------------------------ the window, phase by phase
+    # ``step`` = ``begin_window`` + k x (``tracking_target``, follower, ``low_level_step``) +
+    # ``end_window``. :class:`semdp.embedded.vector.LockstepVectorEnv` calls the same phases for
+    # several envs in lockstep, so that their followers act in one batched forward.
+
+    def begin_window(self, action) -> Window:
+        """Perceive, turn the action into a subgoal and plan (Alg. 2: subgoal, Eq. 3.3 plan)."""
         if self._obs is None:
             raise RuntimeError("call reset() before step()")
         action = np.asarray(action, dtype=np.float64).reshape(-1)
@@ -166,60 +208,75 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         waypoints = np.asarray(plan.waypoints)
         if self.draw_plan and hasattr(base, "set_overlay"):
             base.set_overlay(waypoints=waypoints, subgoal=subgoal)
+        return Window(plan=plan, waypoints=waypoints, subgoal=subgoal,
+                      n_obstacles=len(obstacles), obs=self._obs,
+                      perception_s=t1 - t0, plan_s=t2 - t1)
 
-        total_reward, total_cost, goal_met = 0.0, 0.0, False
-        cost_terms: dict[str, float] = {}
-        follow_time = sim_time = 0.0
-        index, steps = 0, 0
-        obs, terminated, truncated, info = self._obs, False, False, {}
-        for step in range(self.k):
-            t3 = time.perf_counter()
-            position = base.robot_position
-            if step >= self.k - self.brake_steps:
-                target = position
-            else:
-                index = select_tracking_index(waypoints, position, index, self.d_min)
-                target = waypoints[index]
-            low_action = self.follower.act(obs, position, base.robot_heading, target)
-            t4 = time.perf_counter()
-            obs, reward, terminated, truncated, info = self.env.step(low_action)
-            sim_time += time.perf_counter() - t4
-            follow_time += t4 - t3
-            steps += 1
-            total_reward += float(reward)
-            total_cost += float(info.get("cost", 0.0))
-            for key, value in info.items():
-                if key.startswith("cost_"):
-                    cost_terms[key] = cost_terms.get(key, 0.0) + float(value)
-            goal_met = goal_met or bool(info.get("goal_met", False))
-            if self.frame_every and (self.low_level_steps + steps) % self.frame_every == 0:
-                self._record_frame()
-            if terminated or truncated:
-                break
-        self._obs = obs
+    def tracking_target(self, window: Window) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """The follower's inputs for the next low-level step: ``(obs, position, heading,
+        target)``, the target being the tracking point of App. B.2.2 (the robot's own position
+        in the last ``brake_steps`` steps)."""
+        base = self.env.unwrapped
+        position = base.robot_position
+        if window.steps >= self.k - self.brake_steps:
+            target = position
+        else:
+            window.index = select_tracking_index(window.waypoints, position, window.index,
+                                                 self.d_min)
+            target = window.waypoints[window.index]
+        return window.obs, position, base.robot_heading, target
+
+    def low_level_step(self, window: Window, low_action) -> bool:
+        """Execute one low-level action in the inner env; True when the window is over.
+
+        The one place where a low-level action is finalised and sent to the robot, for the
+        sequential :meth:`step` and the batched :class:`~semdp.embedded.vector.LockstepVectorEnv`
+        alike: a low-level safety filter that replaces the follower's action belongs here, just
+        before ``self.env.step``.
+        """
+        t0 = time.perf_counter()
+        obs, reward, terminated, truncated, info = self.env.step(low_action)
+        window.sim_s += time.perf_counter() - t0
+        window.steps += 1
+        window.obs, window.terminated, window.truncated, window.info = (
+            obs, terminated, truncated, info)
+        window.reward += float(reward)
+        window.cost += float(info.get("cost", 0.0))
+        for key, value in info.items():
+            if key.startswith("cost_"):
+                window.cost_terms[key] = window.cost_terms.get(key, 0.0) + float(value)
+        window.goal_met = window.goal_met or bool(info.get("goal_met", False))
+        if self.frame_every and (self.low_level_steps + window.steps) % self.frame_every == 0:
+            self._record_frame()
+        return bool(terminated or truncated) or window.steps >= self.k
+
+    def end_window(self, window: Window):
+        """Book the window and return the SEMDP step ``(obs, r', terminated, truncated, info)``."""
+        self._obs = window.obs
         self.high_level_steps += 1
-        self.low_level_steps += steps
+        self.low_level_steps += window.steps
         step_timing = {
-            "perception_s": t1 - t0, "plan_s": t2 - t1, "follow_s": follow_time, "sim_s": sim_time,
+            "perception_s": window.perception_s, "plan_s": window.plan_s,
+            "follow_s": window.follow_s, "sim_s": window.sim_s,
         }
         for key, value in step_timing.items():
             self.timing[key] += value
 
-        out = {key: value for key, value in info.items() if not key.startswith("cost")}
-        out.update(cost_terms)
+        plan = window.plan
+        out = {key: value for key, value in window.info.items() if not key.startswith("cost")}
+        out.update(window.cost_terms)
         out.update(
-            cost=total_cost,
-            goal_met=goal_met,
+            cost=window.cost,
+            goal_met=window.goal_met,
             plan=plan,
-            subgoal=subgoal,
-            n_obstacles=len(obstacles),
+            subgoal=window.subgoal,
+            n_obstacles=window.n_obstacles,
             plan_feasible=bool(getattr(plan, "feasible", True)),
             plan_fallback=bool(getattr(plan, "fallback", False)),
             plan_escape=bool(getattr(plan, "escape_mode", False)),
             plan_rescued=bool(getattr(plan, "rescued", False)),
             plan_min_clearance=float(getattr(plan, "min_clearance", np.inf)),
-            low_level_steps=steps,
+            low_level_steps=window.steps,
             **step_timing,
         )
-        return obs, total_reward, terminated, truncated, out
-
+        return window.obs, window.reward, window.terminated, window.truncated, out
