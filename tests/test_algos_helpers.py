@@ -37,7 +37,7 @@ def _rows(path: Path) -> list[dict[str, str]]:
         return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(f)]
 
 
-def _actions(rng: np.random.Generator, envs) -> np.ndarray:  # noqa: ANN001
+def _actions(rng: np.random.Generator, envs) -> np.ndarray:
     space = envs.single_action_space
     shape = (envs.num_envs, *space.shape)
     return rng.uniform(space.low, space.high, shape).astype(space.dtype)
@@ -75,26 +75,31 @@ def test_success_flags_follow_gymnasiums_merged_final_info() -> None:
     assert success_flags({1: {"is_success": 0.0}}) == {1: 0.0}
 
 
-def test_async_stepper_continues_exactly_and_returns_its_envs() -> None:
-    cfg = {"id": "sims/SafetyCarGoal2-v0", "num_envs": 2, "kwargs": {"max_episode_steps": 25}}
+@pytest.mark.parametrize("local", [0, 1])
+def test_async_stepper_continues_exactly_and_returns_its_envs(local: int) -> None:
+    cfg = {"id": "sims/SafetyCarGoal2-v0", "num_envs": 3, "kwargs": {"max_episode_steps": 25}}
     here, there = make_vec_env(cfg, seed=0), make_vec_env(cfg, seed=0)
     here.reset(seed=1)
     there.reset(seed=1)
-    local, remote = VectorStepper(here), AsyncStepper(there)
+    local_stepper, remote = VectorStepper(here), AsyncStepper(there, local=local)
     rng = np.random.default_rng(3)
     try:
         for _ in range(60):
             actions = _actions(rng, here)
-            a, b = local.step(actions), remote.step(actions)
+            a, b = local_stepper.step(actions), remote.step(actions)
             np.testing.assert_array_equal(a.obs, b.obs)
             np.testing.assert_array_equal(a.rewards, b.rewards)
             np.testing.assert_array_equal(a.costs, b.costs)
             np.testing.assert_array_equal(a.final_observations(), b.final_observations())
-        restored = pickle.loads(remote.env_state())  # the checkpoint's round trip, in the helper
+            assert a.final_infos == b.final_infos
+        gathered = remote.gather()  # the checkpoint's round trip, in the helper ...
+        assert gathered is there
         pickle.dumps(here)  # ... and the same round trip here
-        actions = _actions(rng, here)
-        np.testing.assert_array_equal(VectorStepper(restored).step(actions).obs,
-                                      local.step(actions).obs)
+        pickle.dumps(there)  # (idempotent on the gathered, restored sub-envs)
+        for _ in range(30):
+            actions = _actions(rng, here)
+            np.testing.assert_array_equal(remote.step(actions).obs,
+                                          local_stepper.step(actions).obs)
         assert remote.busy_seconds > 0
     finally:
         remote.close()

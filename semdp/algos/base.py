@@ -166,10 +166,12 @@ class Algorithm(ABC):
             obs = step.obs
             ret += step.rewards
             cost += step.costs
-            for i in np.flatnonzero(step.ended):
+            ended = np.flatnonzero(step.ended)
+            successes = step.successes if len(ended) else {}
+            for i in ended:
                 if quota[i] > 0:
                     quota[i] -= 1
-                    results.append((float(ret[i]), float(cost[i]), step.successes[i]))
+                    results.append((float(ret[i]), float(cost[i]), successes[i]))
                 ret[i] = cost[i] = 0.0
         rets = np.array([r[0] for r in results])
         csts = np.array([r[1] for r in results])

@@ -4,9 +4,9 @@ families; semdp/README.md, "Algorithms and recorded choices").
 Two optional helper processes use a second core without changing a single number (same seed,
 same ``progress.csv``; semdp/README.md, "Throughput"):
 
-* ``vectorization="async"``: the training envs step in a forked helper
-  (:class:`~semdp.common.async_stepper.AsyncStepper`) while the trainer evaluates the critics
-  and stores the previous step;
+* ``vectorization="async"``: most training envs step in a forked helper
+  (:class:`~semdp.common.async_stepper.AsyncStepper`) while the trainer steps the others and
+  evaluates its critics;
 * ``parallel_critics=True``: the critics regress in a forked helper
   (:class:`~semdp.common.critic_worker.CriticWorker`) while the actor updates; the helper gets
   the permutations the trainer's generator would have drawn for them.
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import logging
 import os
-import pickle
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -31,7 +30,7 @@ import numpy.typing as npt
 import torch
 
 from semdp.algos.base import Algorithm
-from semdp.common.async_stepper import AsyncStepper, PickledEnvs
+from semdp.common.async_stepper import AsyncStepper
 from semdp.common.buffers import RolloutBatch, RolloutBuffer
 from semdp.common.critic_regression import CriticTargets, regress_critics
 from semdp.common.critic_worker import CriticWorker
@@ -44,6 +43,9 @@ from semdp.common.vector_stepping import MergedInfoStepper, VectorStepper, stepp
 logger = logging.getLogger(__name__)
 
 VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
+#: Fraction of the sub-envs the trainer steps itself with ``async`` (it also runs the critics
+#: during the step, so it takes a little less than half).
+TRAINER_SHARE: tuple[int, int] = (2, 5)
 #: Modules whose wrappers keep no state the trainer reads (``auto`` may fork the envs).
 _PLAIN_WRAPPER_MODULES: tuple[str, ...] = ("gymnasium.", "semdp.envs")
 
@@ -177,7 +179,9 @@ class OnPolicyAlgorithm(Algorithm):
     def _training_stepper(self) -> VectorStepper | MergedInfoStepper | AsyncStepper:
         if self._stepper is None:
             if self.vectorization == "async":
-                self._stepper = AsyncStepper(self.envs)
+                # the trainer steps a share of the envs too: it waits for the helper otherwise
+                local = (self.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1]
+                self._stepper = AsyncStepper(self.envs, local=local)
                 self._stepper_busy_seen = 0.0
             else:
                 self._stepper = stepper_for(self.envs)
@@ -342,7 +346,7 @@ class OnPolicyAlgorithm(Algorithm):
         if not isinstance(self._stepper, AsyncStepper):
             return self.envs
         try:
-            return PickledEnvs(self._stepper.env_state())
+            return self._stepper.gather()
         except RuntimeError as exc:
             if not self._warned_unpicklable:
                 logger.warning("the env helper cannot pickle the envs (%s): checkpoints omit "
@@ -353,16 +357,12 @@ class OnPolicyAlgorithm(Algorithm):
     def _stop_stepper(self, fetch: bool) -> None:
         stepper, self._stepper = self._stepper, None
         if isinstance(stepper, AsyncStepper):
-            envs = None
             if fetch:
                 try:
-                    envs = pickle.loads(stepper.env_state())
+                    stepper.gather()  # the helper's sub-envs back into self.envs
                 except RuntimeError:  # a step was in flight (an error interrupted it)
-                    envs = None
+                    pass
             stepper.close()
-            if envs is not None:
-                self.envs.close()
-                self.envs = envs
 
     def replace_envs(self, envs: gym.vector.VectorEnv) -> None:
         """Continue with ``envs``; a helper stepping the old ones is stopped."""

@@ -1,12 +1,12 @@
-"""Training envs stepped in a forked helper process while the learner computes.
+"""Training envs stepped partly in a forked helper process, partly in the trainer, at once.
 
 ``vectorization="async"`` of the on-policy algorithms (semdp/README.md, "Throughput"): the
-helper holds the sub-envs as they were when it was forked and steps them with
-:class:`~semdp.common.vector_stepping.VectorStepper`, so they evolve exactly as they would in
-the trainer. Actions, observations, rewards, flags and costs travel through shared memory; the
-pipe carries a one-byte request per step and, when episodes end, their last observations and
-success flags. :meth:`AsyncStepper.env_state` pickles the helper's vector env (for checkpoints:
-the same round trip a checkpoint of in-process envs does).
+helper holds the sub-envs ``local..n-1`` as they were when it was forked and steps them while
+the trainer steps ``0..local-1`` and evaluates its critics; both use
+:class:`~semdp.common.vector_stepping.VectorStepper`, so every sub-env evolves exactly as it
+would in the trainer alone (each has its own generator). Actions, observations, rewards, flags
+and costs of the helper's sub-envs travel through shared memory; the pipe carries a one-byte
+request per step and, when episodes end, their last observations and success entries.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import mmap
 import pickle
 import time
 import traceback
-from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -25,15 +24,22 @@ from semdp.common.vector_stepping import StepResult, VectorStepper
 
 _STEP, _STATE = b"s", b"p"
 _OK, _ERROR = b"d", b"e"
-#: Pickle protocol of :meth:`AsyncStepper.env_state` (torch.save's default, as in-process).
+#: Pickle protocol of the helper's sub-envs (torch.save's default, as for in-process envs).
 STATE_PROTOCOL = 2
 
 
 class _SharedArrays:
-    """Per-step arrays in one anonymous shared mapping (inherited by the forked helper)."""
+    """Per-step arrays of ``n`` sub-envs in one anonymous shared mapping (inherited by fork)."""
 
-    def __init__(self, envs: gym.vector.SyncVectorEnv) -> None:
-        n = envs.num_envs
+    actions: np.ndarray
+    obs: np.ndarray
+    rewards: np.ndarray
+    costs: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    busy_s: np.ndarray
+
+    def __init__(self, envs: gym.vector.SyncVectorEnv, n: int) -> None:
         obs_space, act_space = envs.single_observation_space, envs.single_action_space
         layout = [
             ("actions", (n, *act_space.shape), act_space.dtype),
@@ -48,32 +54,26 @@ class _SharedArrays:
         offsets = np.cumsum([0, *[(s + 63) // 64 * 64 for s in sizes]])
         self._map = mmap.mmap(-1, max(int(offsets[-1]), 1))
         for (name, shape, dtype), offset in zip(layout, offsets[:-1], strict=True):
-            count = int(np.prod(shape))
-            view = np.frombuffer(self._map, dtype=dtype, count=count, offset=int(offset))
+            view = np.frombuffer(self._map, dtype=dtype, count=int(np.prod(shape)),
+                                 offset=int(offset))
             setattr(self, name, view.reshape(shape))
-
-    actions: np.ndarray
-    obs: np.ndarray
-    rewards: np.ndarray
-    costs: np.ndarray
-    terminated: np.ndarray
-    truncated: np.ndarray
-    busy_s: np.ndarray
 
 
 class _Server:
-    """The helper's side: steps on request, writes the results into the shared arrays."""
+    """The helper's side: steps its sub-envs on request, results into the shared arrays."""
 
-    def __init__(self, envs: gym.vector.SyncVectorEnv, shared: _SharedArrays) -> None:
-        self.envs, self.shared = envs, shared
-        self.stepper = VectorStepper(envs)
+    def __init__(self, envs: gym.vector.SyncVectorEnv, indices: range,
+                 shared: _SharedArrays) -> None:
+        self.envs, self.indices, self.shared = envs, indices, shared
+        self.stepper = VectorStepper(envs, indices)
 
     def __call__(self, request: bytes) -> bytes:
         try:
             if request == _STEP:
                 return self._step()
             if request == _STATE:
-                return _OK + pickle.dumps(self.envs, protocol=STATE_PROTOCOL)
+                subs = [self.envs.envs[i] for i in self.indices]
+                return _OK + pickle.dumps(subs, protocol=STATE_PROTOCOL)
             raise ValueError(f"unknown request {request!r}")
         except Exception:  # reported to the trainer, which raises it
             return _ERROR + traceback.format_exc().encode()
@@ -87,35 +87,34 @@ class _Server:
         s.costs[...] = result.costs
         s.terminated[...] = result.terminated
         s.truncated[...] = result.truncated
-        extra = pickle.dumps((result.final_obs, result.successes)) if result.final_obs else b""
+        extra = pickle.dumps((result.final_obs, result.final_infos)) if result.final_obs else b""
         s.busy_s[0] += time.perf_counter() - start
         return _OK + extra
 
 
-class PickledEnvs:
-    """A pickled vector env that unpickles to the env itself (a checkpoint's ``envs`` entry)."""
-
-    def __init__(self, data: bytes) -> None:
-        self.data = data
-
-    def __reduce__(self) -> tuple[Any, tuple[bytes]]:
-        return pickle.loads, (self.data,)
-
-
 class AsyncStepper:
-    """Steps ``envs`` in a forked helper; the interface of
+    """Steps ``envs`` with a forked helper; the interface of
     :class:`~semdp.common.vector_stepping.VectorStepper` (``step_async`` / ``step_wait``).
 
     Args:
-        envs: the vector env as it is now; the helper continues from exactly this state. The
-            trainer's copy is not stepped any more (fetch the live one with :meth:`env_state`).
+        envs: the vector env as it is now; the helper continues its sub-envs from exactly this
+            state (the trainer's copies of them are not stepped any more; :meth:`gather`
+            brings them back).
+        local: how many sub-envs (the first ones) the trainer steps itself in
+            :meth:`step_wait`, while the helper steps the others.
     """
 
-    def __init__(self, envs: gym.vector.SyncVectorEnv) -> None:
-        VectorStepper(envs)  # validates the autoreset mode before forking
-        self._shared = _SharedArrays(envs)
-        self._worker = ForkedWorker(_Server(envs, self._shared), name="semdp-envs")
-        self._waiting = False
+    def __init__(self, envs: gym.vector.SyncVectorEnv, local: int = 0) -> None:
+        n = envs.num_envs
+        if not 0 <= local < n:
+            raise ValueError(f"local must be in [0, {n - 1}], got {local}")
+        self.envs, self.local = envs, local
+        self._here = VectorStepper(envs, range(local)) if local else None
+        remote = range(local, n)
+        VectorStepper(envs, remote)  # validates the autoreset mode before forking
+        self._shared = _SharedArrays(envs, len(remote))
+        self._worker = ForkedWorker(_Server(envs, remote, self._shared), name="semdp-envs")
+        self._pending: np.ndarray | None = None
 
     def _reply(self) -> bytes:
         reply = self._worker.receive()
@@ -124,35 +123,40 @@ class AsyncStepper:
         return reply[1:]
 
     def step_async(self, actions: np.ndarray) -> None:
-        """Start a step with ``actions`` (rows per sub-env, the env's action dtype)."""
-        if self._waiting:
+        """Start the helper's part of a step (rows per sub-env, the env's action dtype)."""
+        if self._pending is not None:
             raise RuntimeError("step_async() while a step is running; call step_wait()")
-        self._shared.actions[...] = actions
+        self._shared.actions[...] = actions[self.local:]
         self._worker.send(_STEP)
-        self._waiting = True
+        self._pending = actions
 
     def step_wait(self) -> StepResult:
-        """Wait for the step started by :meth:`step_async`."""
-        if not self._waiting:
+        """Step the trainer's part, then wait for the helper's; the whole step's result."""
+        if self._pending is None:
             raise RuntimeError("step_wait() without step_async()")
-        self._waiting = False
+        actions, self._pending = self._pending, None
+        here = self._here.step(actions[: self.local]) if self._here is not None else None
         extra = self._reply()
         s = self._shared
-        final_obs, successes = pickle.loads(extra) if extra else ({}, {})
-        return StepResult(s.obs.copy(), s.rewards.copy(), s.terminated.copy(),
-                          s.truncated.copy(), s.costs.copy(), final_obs, successes)
+        final_obs, final_infos = pickle.loads(extra) if extra else ({}, {})
+        there = StepResult(s.obs.copy(), s.rewards.copy(), s.terminated.copy(),
+                           s.truncated.copy(), s.costs.copy(), final_obs, final_infos)
+        return there if here is None else StepResult.concatenate(here, there)
 
     def step(self, actions: np.ndarray) -> StepResult:
         """One step, waiting for it."""
         self.step_async(actions)
         return self.step_wait()
 
-    def env_state(self) -> bytes:
-        """The helper's vector env, pickled (it takes the round trip a checkpoint takes)."""
-        if self._waiting:
-            raise RuntimeError("env_state() while a step is running")
+    def gather(self) -> gym.vector.SyncVectorEnv:
+        """The vector env with the helper's sub-envs brought back (pickled there, as a
+        checkpoint pickles sub-envs); the helper keeps stepping its own."""
+        if self._pending is not None:
+            raise RuntimeError("gather() while a step is running")
         self._worker.send(_STATE)
-        return self._reply()
+        subs = pickle.loads(self._reply())
+        self.envs.envs[self.local:] = subs
+        return self.envs
 
     @property
     def busy_seconds(self) -> float:
@@ -160,5 +164,5 @@ class AsyncStepper:
         return float(self._shared.busy_s[0])
 
     def close(self) -> None:
-        """Stop the helper (its envs are dropped; fetch them first with :meth:`env_state`)."""
+        """Stop the helper (call :meth:`gather` first to keep its sub-envs)."""
         self._worker.close()

@@ -33,8 +33,8 @@ class StepResult:
         rewards, terminated, truncated: per sub-env.
         costs: ``info["cost"]`` of the step (0 where a sub-env reports none).
         final_obs: sub-env index -> the true last observation of the episode that ended.
-        successes: sub-env index -> the success flag of the episode that ended (``None`` when
-            no episode ending in this step reports ``success`` or ``is_success``).
+        final_infos: sub-env index -> the ``success``/``is_success`` entries of the last info
+            of the episode that ended (the only entries the algorithms read).
     """
 
     obs: np.ndarray
@@ -43,12 +43,31 @@ class StepResult:
     truncated: npt.NDArray[np.bool_]
     costs: npt.NDArray[np.float64]
     final_obs: dict[int, np.ndarray] = field(default_factory=dict)
-    successes: dict[int, float | None] = field(default_factory=dict)
+    final_infos: dict[int, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def ended(self) -> npt.NDArray[np.bool_]:
         """Episode ended by termination or time-out."""
         return np.logical_or(self.terminated, self.truncated)
+
+    @property
+    def successes(self) -> dict[int, float | None]:
+        """Sub-env index -> success flag of the episode that ended (:func:`success_flags`)."""
+        return success_flags(self.final_infos)
+
+    @classmethod
+    def concatenate(cls, first: StepResult, second: StepResult) -> StepResult:
+        """The results of two groups of sub-envs, ``second``'s indices after ``first``'s."""
+        offset = len(first.rewards)
+        return cls(
+            np.concatenate([first.obs, second.obs]),
+            np.concatenate([first.rewards, second.rewards]),
+            np.concatenate([first.terminated, second.terminated]),
+            np.concatenate([first.truncated, second.truncated]),
+            np.concatenate([first.costs, second.costs]),
+            {**first.final_obs, **{offset + i: o for i, o in second.final_obs.items()}},
+            {**first.final_infos, **{offset + i: f for i, f in second.final_infos.items()}},
+        )
 
     def final_observations(self) -> np.ndarray:
         """``obs`` with the rows of ended episodes replaced by their true last observation."""
@@ -71,27 +90,34 @@ def success_flags(final_infos: Mapping[int, Mapping[str, Any]]) -> dict[int, flo
     return {i: float(info.get(key, 0.0)) for i, info in final_infos.items()}
 
 
+def _success_entries(info: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: info[k] for k in SUCCESS_KEYS if k in info}
+
+
 class VectorStepper:
     """Steps the sub-envs of a SAME_STEP ``SyncVectorEnv`` in this process.
 
     Args:
         envs: the vector env; its sub-envs are stepped directly (its own step buffers are not
             updated, which SAME_STEP autoreset never reads).
+        indices: the sub-envs to step (all by default); ``actions`` and the result have one row
+            per index, in this order.
     """
 
-    def __init__(self, envs: gym.vector.SyncVectorEnv) -> None:
+    def __init__(self, envs: gym.vector.SyncVectorEnv, indices: range | None = None) -> None:
         if envs.autoreset_mode != gym.vector.AutoresetMode.SAME_STEP:
             raise ValueError(f"VectorStepper needs AutoresetMode.SAME_STEP, got "
                              f"{envs.autoreset_mode}")
         self.envs = envs
+        self.indices = range(envs.num_envs) if indices is None else indices
         space = envs.single_observation_space
-        self._obs_shape = (envs.num_envs, *space.shape)
+        self._obs_shape = (len(self.indices), *space.shape)
         self._obs_dtype = space.dtype
         self._pending: np.ndarray | None = None
 
     def step(self, actions: np.ndarray) -> StepResult:
         """Step every sub-env with its row of ``actions``; reset those whose episode ended."""
-        subs = self.envs.envs
+        subs = [self.envs.envs[i] for i in self.indices]
         n = len(subs)
         obs = np.empty(self._obs_shape, dtype=self._obs_dtype)
         rewards = np.zeros(n, dtype=np.float64)
@@ -106,11 +132,10 @@ class VectorStepper:
             if "cost" in info:
                 costs[i] = float(info["cost"])
             if term or trunc:
-                final_obs[i], final_infos[i] = o, info
+                final_obs[i], final_infos[i] = o, _success_entries(info)
                 o, _ = env.reset()
             obs[i] = o
-        return StepResult(obs, rewards, terminated, truncated, costs, final_obs,
-                          success_flags(final_infos) if final_infos else {})
+        return StepResult(obs, rewards, terminated, truncated, costs, final_obs, final_infos)
 
     # The asynchronous interface of :class:`~semdp.common.async_stepper.AsyncStepper`, done
     # in place: the step happens in :meth:`step_wait`.
@@ -146,17 +171,17 @@ class MergedInfoStepper:
             mask = infos.get("_cost", np.ones(n, dtype=bool))
             costs[mask] = np.asarray(infos["cost"], dtype=np.float64)[mask]
         final_obs: dict[int, np.ndarray] = {}
-        successes: dict[int, float | None] = {}
+        final_infos: dict[int, dict[str, Any]] = {}
         if np.any(ended):
             final_info = infos["final_info"]
-            key = "success" if "success" in final_info else "is_success"
             for i in np.flatnonzero(ended):
                 final_obs[int(i)] = infos["final_obs"][i]
                 costs[i] = float(final_info["cost"][i])
-                successes[int(i)] = float(final_info[key][i]) if key in final_info else None
+                final_infos[int(i)] = {k: final_info[k][i] for k in SUCCESS_KEYS
+                                       if k in final_info}
         return StepResult(np.asarray(obs), np.asarray(rewards, dtype=np.float64),
                           np.asarray(terminated), np.asarray(truncated), costs, final_obs,
-                          successes)
+                          final_infos)
 
     def step_async(self, actions: np.ndarray) -> None:
         """Remember ``actions`` for :meth:`step_wait`."""
