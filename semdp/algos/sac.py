@@ -1,18 +1,26 @@
 """Soft Actor-Critic with automatic entropy tuning and twin Q (Haarnoja et al. 2018).
 
-CleanRL defaults (research/saferl_anchors.md §5.2): 256x256 ReLU, actor lr 3e-4, critic lr 1e-3,
-tau 0.005, batch 256, 5000 uniformly random steps first, policy delay 2 (the actor and the
-temperature are then updated twice), target entropy ``-dim(A)``. Time-outs bootstrap (only
-``terminated`` masks the target). SAC optimises reward only -- the cost is recorded in the replay
-buffer and logged, which is what the Safety-Embedded MDP's high level needs (SPEC §4.2).
-Works on any gymnasium env with a Box action space; actions are tanh-squashed to [-1, 1] and
-scaled to the bounds.
+CleanRL defaults (semdp/README.md, "Algorithms and recorded choices"): 256x256 ReLU, actor lr
+3e-4, critic lr 1e-3, tau 0.005, batch 256, 5000 uniformly random steps first, policy delay 2
+(the actor and the temperature are then updated twice), target entropy ``-dim(A)``. Time-outs
+bootstrap (only ``terminated`` masks the target). SAC optimises reward only -- the cost is
+recorded in the replay buffer and logged, which is what the Safety-Embedded MDP's high level
+needs (thesis §3.5.1). Works on any gymnasium env with a Box action space; actions are
+tanh-squashed to [-1, 1] and scaled to the bounds.
+
+Two loops (``learner``): ``sequential`` -- each env step is followed by its updates, in this
+process; ``process`` / ``inline`` -- collection proceeds in rounds of ``sync_every`` env steps
+while the updates earned by the previous round run, in a learner process on another core
+(``process``) or in this process after the round (``inline``, the same numbers); the collector
+acts with the weights of the last finished round (semdp/README.md, "SAC learner process").
 """
 
 from __future__ import annotations
 
 import copy
+import logging
 import math
+import time
 from typing import Any
 
 import gymnasium as gym
@@ -21,9 +29,19 @@ import numpy.typing as npt
 import torch
 
 from semdp.algos.base import Algorithm
+from semdp.algos.learner_host import InlineLearner, LearnerError, ProcessLearner
+from semdp.algos.replay_shared import SharedReplayBuffer
+from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
 from semdp.common.buffers import ReplayBuffer
 from semdp.common.networks import SquashedGaussianActor, TwinQCritic
 from semdp.envs import split_step_infos
+
+logger = logging.getLogger(__name__)
+
+#: Values of SAC's ``learner`` argument.
+LEARNERS: tuple[str, ...] = ("sequential", "inline", "process")
+#: Offset of the learner's generator seed from the run seed (its own random stream).
+LEARNER_SEED_OFFSET = 7_777
 
 
 class SAC(Algorithm):
@@ -45,6 +63,12 @@ class SAC(Algorithm):
         autotune: learn alpha towards ``target_entropy``.
         target_entropy: defaults to ``-dim(A)``.
         alpha_lr: Adam learning rate of log alpha.
+        learner: ``sequential`` (updates after each env step, this process), ``process``
+            (updates of the previous round in a learner process while this one collects) or
+            ``inline`` (the same rounds, updates in this process; for tests and one core).
+        sync_every: env steps (summed over sub-envs) per round of the ``process``/``inline``
+            loops: the collector's weights are at most this many steps old.
+        learner_threads: torch threads of the learner process.
     """
 
     extra_columns = ("loss_q", "loss_pi", "alpha", "q_mean", "entropy")
@@ -69,8 +93,16 @@ class SAC(Algorithm):
         autotune: bool = True,
         target_entropy: float | None = None,
         alpha_lr: float = 1e-3,
+        learner: str = "sequential",
+        sync_every: int = 64,
+        learner_threads: int = 1,
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
+        if learner not in LEARNERS:
+            raise ValueError(f"learner must be one of {LEARNERS}, got {learner!r}")
+        if sync_every < 1 or learner_threads < 1:
+            raise ValueError(f"sync_every and learner_threads must be >= 1, got {sync_every}, "
+                             f"{learner_threads}")
         if not 0 <= gamma <= 1:
             raise ValueError(f"gamma must be in [0, 1], got {gamma}")
         if not 0 < tau <= 1:
@@ -87,17 +119,40 @@ class SAC(Algorithm):
         self.gamma, self.tau, self.batch_size = gamma, tau, batch_size
         self.learning_starts, self.updates_per_step = learning_starts, updates_per_step
         self.policy_frequency, self.autotune = policy_frequency, autotune
-        self.actor = SquashedGaussianActor(self.obs_dim, self.act_dim, hidden)
-        self.critic = TwinQCritic(self.obs_dim, self.act_dim, hidden)
-        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=actor_lr)
-        self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=critic_lr)
         self.target_entropy = -float(self.act_dim) if target_entropy is None else target_entropy
-        self.log_alpha = torch.tensor(math.log(alpha), requires_grad=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=alpha_lr)
-        self.buffer = ReplayBuffer(buffer_size, self.obs_dim, self.act_dim)
+        self.learner = learner
+        self.learner_threads = int(learner_threads)
+        self.round_steps = max(1, math.ceil(sync_every / self.num_envs))
+        #: Seconds spent on learning as seen by this process (bench: ``semdp-bench semdp``).
+        self.timing: dict[str, float] = {"update_s": 0.0, "learner_wait_s": 0.0,
+                                         "learner_busy_s": 0.0}
         self._updates = 0
         self._update_credit = 0.0
+        self._host: InlineLearner | ProcessLearner | None = None
+        if learner == "sequential":
+            self.actor = SquashedGaussianActor(self.obs_dim, self.act_dim, hidden)
+            self.critic = TwinQCritic(self.obs_dim, self.act_dim, hidden)
+            self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+            self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=actor_lr)
+            self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=critic_lr)
+            self.log_alpha = torch.tensor(math.log(alpha), requires_grad=True)
+            self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=alpha_lr)
+            self.buffer = ReplayBuffer(buffer_size, self.obs_dim, self.act_dim)
+            return
+        self.buffer = SharedReplayBuffer(buffer_size, self.obs_dim, self.act_dim,
+                                         shared=learner == "process")
+        settings = LearnerSettings(
+            obs_dim=self.obs_dim, act_dim=self.act_dim, hidden_sizes=hidden,
+            actor_lr=actor_lr, critic_lr=critic_lr, gamma=gamma, tau=tau,
+            batch_size=batch_size, policy_frequency=policy_frequency, alpha=alpha,
+            autotune=autotune, target_entropy=self.target_entropy, alpha_lr=alpha_lr,
+            seed=self.seed + LEARNER_SEED_OFFSET,
+        )
+        self._core = SACLearner(settings, self.buffer.tensors)
+        core = self._core
+        self.actor, self.critic, self.critic_target = core.actor, core.critic, core.critic_target
+        self.actor_optimizer, self.critic_optimizer = core.actor_optimizer, core.critic_optimizer
+        self.log_alpha, self.alpha_optimizer = core.log_alpha, core.alpha_optimizer
 
     @property
     def alpha(self) -> float:
@@ -147,7 +202,13 @@ class SAC(Algorithm):
         return out
 
     def train_epoch(self) -> dict[str, float]:
-        """``steps_per_epoch`` env steps, each followed by ``updates_per_step`` updates."""
+        """``steps_per_epoch`` env steps and ``updates_per_step`` updates per env step."""
+        if self.learner == "sequential":
+            return self._train_epoch_sequential()
+        return self._train_epoch_rounds()
+
+    def _train_epoch_sequential(self) -> dict[str, float]:
+        """Each env step followed by its updates (the loop of CleanRL's SAC)."""
         logs: dict[str, list[float]] = {k: [] for k in self.extra_columns}
         for _ in range(self.n_steps):
             if self.env_steps < self.learning_starts:
@@ -165,10 +226,12 @@ class SAC(Algorithm):
             self.env_steps += self.num_envs
             if self.env_steps >= self.learning_starts and self.buffer.size >= self.batch_size:
                 self._update_credit += self.updates_per_step * self.num_envs
+                start = time.perf_counter()
                 while self._update_credit >= 1.0:
                     self._update_credit -= 1.0
                     for k, v in self._update().items():
                         logs[k].append(v)
+                self.timing["update_s"] += time.perf_counter() - start
         self.epoch += 1
         row = {k: float(np.mean(v)) if v else math.nan for k, v in logs.items()}
         row["alpha"] = self.alpha
@@ -176,6 +239,11 @@ class SAC(Algorithm):
 
     def state_dict(self) -> dict[str, Any]:
         """Networks, optimisers, temperature and the replay buffer."""
+        if self.learner != "sequential":
+            learner = self._host.state_dict() if self._host is not None else \
+                self._core.state_dict()
+            return {**super().state_dict(), **learner, "buffer": self.buffer.state_dict(),
+                    "update_credit": self._update_credit}
         return {
             **super().state_dict(),
             "actor": self.actor.state_dict(),
@@ -192,6 +260,13 @@ class SAC(Algorithm):
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
         super().load_state_dict(state)
+        if self.learner != "sequential":
+            self._core.load_state_dict(state)
+            if self._host is not None:
+                self._host.load_state_dict(state)
+            self.buffer.load_state_dict(state["buffer"])
+            self._update_credit = state["update_credit"]
+            return
         self.actor.load_state_dict(state["actor"])
         self.critic.load_state_dict(state["critic"])
         self.critic_target.load_state_dict(state["critic_target"])
@@ -202,3 +277,93 @@ class SAC(Algorithm):
         self.alpha_optimizer.load_state_dict(state["alpha_optimizer"])
         self.buffer.load_state_dict(state["buffer"])
         self._updates, self._update_credit = state["updates"]
+
+    # ----------------------------------------------------------------- rounds (learner process)
+    def _ensure_host(self) -> InlineLearner | ProcessLearner:
+        if self._host is None:
+            self._host = (ProcessLearner(self._core, self.buffer, self.learner_threads)
+                          if self.learner == "process" else InlineLearner(self._core))
+        return self._host
+
+    def _finish_round(self, logs: dict[str, list[float]]) -> None:
+        """Wait for the learner's round; its logs, temperature and actor weights."""
+        host = self._host
+        if host is None:  # no learner yet: nothing was sent
+            return
+        start = time.perf_counter()
+        out = host.wait()
+        self.timing["learner_wait_s"] += time.perf_counter() - start
+        if out is None:
+            return
+        self.timing["learner_busy_s"] += out["busy_s"]
+        for key in LOG_KEYS:
+            logs[key].extend(out[key])
+        with torch.no_grad():
+            self.log_alpha.fill_(out["log_alpha"])
+        host.pull_actor(self.actor)
+
+    def _train_epoch_rounds(self) -> dict[str, float]:
+        """Rounds of ``round_steps`` vector steps; the updates earned by one round run during
+        the next (or at the end of the epoch), on the replay rows stored before it began."""
+        logs: dict[str, list[float]] = {k: [] for k in self.extra_columns}
+        if self.env_steps + self.steps_per_epoch >= self.learning_starts:
+            self._ensure_host()  # a learner process starts while this epoch collects
+        owed, done = 0, 0
+        while done < self.n_steps or owed:
+            if owed:
+                self._ensure_host().start(owed, self.buffer.size)
+            owed, staged = 0, []
+            for _ in range(min(self.round_steps, self.n_steps - done)):
+                if self.env_steps < self.learning_starts:
+                    unit = torch.rand(self.num_envs, self.act_dim) * 2 - 1
+                else:
+                    with torch.inference_mode():
+                        unit, _ = self.actor(torch.as_tensor(self._obs, dtype=torch.float32))
+                next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
+                ended = np.logical_or(term, trunc)
+                costs, final_obs = split_step_infos(next_obs, infos, ended)
+                staged.append((self._obs, unit.numpy(), rewards, costs,
+                               self._flat_obs(final_obs), term.astype(np.float32)))
+                self._track(rewards, costs, ended)
+                self._obs = self._flat_obs(next_obs)
+                self.env_steps += self.num_envs
+                stored = min(self.buffer.size + len(staged) * self.num_envs, self.buffer.capacity)
+                if self.env_steps >= self.learning_starts and stored >= self.batch_size:
+                    self._update_credit += self.updates_per_step * self.num_envs
+                    while self._update_credit >= 1.0:
+                        self._update_credit -= 1.0
+                        owed += 1
+                done += 1
+            self._finish_round(logs)
+            if staged:
+                self.buffer.add_batch(*(np.concatenate(part) for part in zip(*staged,
+                                                                             strict=True)))
+        self.epoch += 1
+        row = {k: float(np.mean(v)) if v else math.nan for k, v in logs.items()}
+        row["alpha"] = self.alpha
+        return {**self._pop_episode_stats(), **row}
+
+    def learn(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """:meth:`Algorithm.learn`; a learner process lives only as long as this call (on an
+        error or Ctrl-C it is terminated, else its state is copied back first)."""
+        finished = False
+        try:
+            metrics = super().learn(*args, **kwargs)
+            finished = True
+            return metrics
+        finally:
+            self.close(keep_state=finished)
+
+    def close(self, keep_state: bool = True) -> None:
+        """Stop the learner process, if any (its state copied back with ``keep_state``)."""
+        host, self._host = self._host, None
+        if host is not None:
+            host.close(keep_state=keep_state)
+
+    def close_helpers(self) -> None:
+        """Stop the learner process when the training loop ends (also on errors and Ctrl-C,
+        where a failure to copy its state back is only logged: the last checkpoint has it)."""
+        try:
+            self.close(keep_state=True)
+        except LearnerError as exc:
+            logger.warning("learner process state not copied back: %s", exc)

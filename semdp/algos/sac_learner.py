@@ -1,0 +1,192 @@
+"""The learning half of SAC (Haarnoja et al. 2018) as an object that can run in its own process
+(semdp/README.md, "SAC learner process"; the high level of thesis Alg. 2).
+
+:class:`SACLearner` owns the actor, the fused twin critic (:class:`~semdp.algos.twin_q.FusedTwinQ`)
+and its target, the three optimisers and the temperature, and runs ``n`` gradient updates on
+the replay rows it is told are filled. The update is :class:`semdp.algos.sac.SAC`'s (CleanRL's):
+clipped double-Q target with the entropy term, policy delay ``policy_frequency`` (then that many
+actor and temperature steps), Polyak-averaged target critics; it only drops work whose result is
+discarded (critic weight gradients of the actor loss). Randomness (minibatch indices, the
+policy's reparameterisation noise) comes from the learner's own generator, so the learner gives
+the same numbers in the training process and in a process of its own.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+from torch import nn
+
+from semdp.algos.twin_q import FusedTwinQ
+from semdp.common.networks import SquashedGaussianActor
+
+#: Log columns a round of updates reports (``progress.csv`` columns of SAC).
+LOG_KEYS: tuple[str, ...] = ("loss_q", "q_mean", "loss_pi", "entropy")
+
+
+@dataclass(frozen=True)
+class LearnerSettings:
+    """Everything needed to rebuild a :class:`SACLearner` in another process (SAC's arguments)."""
+
+    obs_dim: int
+    act_dim: int
+    hidden_sizes: tuple[int, ...]
+    actor_lr: float
+    critic_lr: float
+    gamma: float
+    tau: float
+    batch_size: int
+    policy_frequency: int
+    alpha: float
+    autotune: bool
+    target_entropy: float
+    alpha_lr: float
+    seed: int
+
+
+def _adam(params: Any, lr: float) -> torch.optim.Adam:
+    """Adam with the fused CPU kernel when this torch has it (one kernel for all tensors)."""
+    try:
+        return torch.optim.Adam(params, lr=lr, fused=True)
+    except (RuntimeError, TypeError, ValueError):  # pragma: no cover - older torch builds
+        return torch.optim.Adam(params, lr=lr, foreach=True)
+
+
+class SACLearner:
+    """SAC's networks, optimisers and update on a replay storage of torch tensors.
+
+    Args:
+        settings: sizes and hyper-parameters.
+        storage: the replay tensors ``obs``, ``next_obs``, ``actions``, ``rewards``,
+            ``terminated`` (:class:`~semdp.algos.replay_shared.SharedReplayBuffer.tensors`).
+        actor: the actor to train (built here when None).
+    """
+
+    def __init__(
+        self,
+        settings: LearnerSettings,
+        storage: dict[str, torch.Tensor],
+        actor: SquashedGaussianActor | None = None,
+    ) -> None:
+        s = settings
+        self.settings = s
+        self.storage = storage
+        hidden = tuple(s.hidden_sizes)
+        self.actor = actor if actor is not None else SquashedGaussianActor(
+            s.obs_dim, s.act_dim, hidden)
+        self.critic = FusedTwinQ(s.obs_dim, s.act_dim, hidden)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self.actor_optimizer = _adam(self.actor.parameters(), s.actor_lr)
+        self.critic_optimizer = _adam(self.critic.parameters(), s.critic_lr)
+        self.log_alpha = torch.tensor(math.log(s.alpha), requires_grad=True)
+        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=s.alpha_lr)
+        self.generator = torch.Generator().manual_seed(int(s.seed))
+        self.updates = 0
+        self._critic_params = list(self.critic.parameters())
+        self._target_params = list(self.critic_target.parameters())
+
+    # ----------------------------------------------------------------- the update
+    def _policy(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """A reparameterised sample of the squashed policy and its log-probability (the
+        computation of :class:`SquashedGaussianActor`, with this learner's noise)."""
+        actor = self.actor
+        mean, raw_log_std = actor.net(obs).chunk(2, dim=-1)
+        span = actor.LOG_STD_MAX - actor.LOG_STD_MIN
+        log_std = actor.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
+        noise = torch.randn(mean.shape, generator=self.generator)
+        pre_tanh = mean + log_std.exp() * noise
+        correction = 2.0 * (math.log(2.0) - pre_tanh - nn.functional.softplus(-2.0 * pre_tanh))
+        log_prob = (-0.5 * noise.square() - log_std - 0.5 * math.log(2.0 * math.pi)
+                    - correction).sum(-1)
+        return torch.tanh(pre_tanh), log_prob
+
+    def update(self, size: int, logs: dict[str, list[torch.Tensor]]) -> None:
+        """One critic update on a minibatch of the first ``size`` rows (+ the delayed actor and
+        temperature updates); appends the logged scalars to ``logs``."""
+        s = self.settings
+        idx = torch.randint(0, size, (s.batch_size,), generator=self.generator)
+        st = self.storage
+        obs, actions = st["obs"].index_select(0, idx), st["actions"].index_select(0, idx)
+        rewards, next_obs = st["rewards"].index_select(0, idx), st["next_obs"].index_select(0, idx)
+        terminated = st["terminated"].index_select(0, idx)
+        alpha = self.log_alpha.detach().exp()
+        with torch.no_grad():
+            next_a, next_logp = self._policy(next_obs)
+            soft_v = self.critic_target(next_obs, next_a).min(0).values - alpha * next_logp
+            target = rewards + s.gamma * (1.0 - terminated) * soft_v
+        q = self.critic(obs, actions)
+        loss_q = (q - target).square().mean(1).sum()
+        self.critic_optimizer.zero_grad(set_to_none=True)
+        loss_q.backward()
+        self.critic_optimizer.step()
+        self.updates += 1
+        logs["loss_q"].append(loss_q.detach())
+        logs["q_mean"].append(q[0].detach().mean())
+        if self.updates % s.policy_frequency == 0:
+            frozen = [p.detach() for p in self._critic_params]
+            for _ in range(s.policy_frequency):
+                a, logp = self._policy(obs)
+                q_pi = self.critic(obs, a, frozen).min(0).values
+                loss_pi = (self.log_alpha.detach().exp() * logp - q_pi).mean()
+                self.actor_optimizer.zero_grad(set_to_none=True)
+                loss_pi.backward()
+                self.actor_optimizer.step()
+                if s.autotune:
+                    loss_alpha = -(self.log_alpha * (logp.detach() + s.target_entropy)).mean()
+                    self.alpha_optimizer.zero_grad(set_to_none=True)
+                    loss_alpha.backward()
+                    self.alpha_optimizer.step()
+            logs["loss_pi"].append(loss_pi.detach())
+            logs["entropy"].append(-logp.detach().mean())
+        with torch.no_grad():
+            torch._foreach_lerp_(self._target_params, self._critic_params, s.tau)
+
+    def run(self, n_updates: int, size: int) -> dict[str, Any]:
+        """``n_updates`` updates on the first ``size`` replay rows; their logs as floats, the
+        temperature after them and the seconds spent."""
+        start = time.perf_counter()
+        logs: dict[str, list[torch.Tensor]] = {key: [] for key in LOG_KEYS}
+        for _ in range(n_updates):
+            self.update(size, logs)
+        out: dict[str, Any] = {key: torch.stack(v).tolist() if v else []
+                               for key, v in logs.items()}
+        out["log_alpha"] = float(self.log_alpha.detach())
+        out["busy_s"] = time.perf_counter() - start
+        return out
+
+    # ----------------------------------------------------------------- weights and state
+    def actor_vector(self) -> torch.Tensor:
+        """The actor's parameters as one flat tensor (what the collecting process acts with)."""
+        return nn.utils.parameters_to_vector(self.actor.parameters()).detach()
+
+    def state_dict(self) -> dict[str, Any]:
+        """Networks, optimisers, temperature, update count and the generator state."""
+        return {
+            "actor": self.actor.state_dict(),
+            "critic": self.critic.state_dict(),
+            "critic_target": self.critic_target.state_dict(),
+            "actor_optimizer": self.actor_optimizer.state_dict(),
+            "critic_optimizer": self.critic_optimizer.state_dict(),
+            "log_alpha": float(self.log_alpha.detach()),
+            "alpha_optimizer": self.alpha_optimizer.state_dict(),
+            "learner_rng": self.generator.get_state(),
+            "learner_updates": self.updates,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        self.actor.load_state_dict(state["actor"])
+        self.critic.load_state_dict(state["critic"])
+        self.critic_target.load_state_dict(state["critic_target"])
+        self.actor_optimizer.load_state_dict(state["actor_optimizer"])
+        self.critic_optimizer.load_state_dict(state["critic_optimizer"])
+        with torch.no_grad():
+            self.log_alpha.fill_(state["log_alpha"])
+        self.alpha_optimizer.load_state_dict(state["alpha_optimizer"])
+        self.generator.set_state(state["learner_rng"])
+        self.updates = int(state["learner_updates"])

@@ -1,0 +1,71 @@
+"""Twin Q networks evaluated as one batched network (SAC's clipped double Q, Haarnoja et al.
+2018; the high level of the Safety-Embedded MDP, thesis §3.5, Alg. 2).
+
+Numerically the same function as :class:`semdp.common.networks.TwinQCritic` (two independent
+ReLU MLPs on ``[obs, act]``), with half the operator calls: the first layers of both networks
+are one matrix product on the shared input, the later layers one batched product each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import nn
+
+from semdp.common.networks import TwinQCritic
+
+
+class FusedTwinQ(nn.Module):
+    """Q1 and Q2 in one module; ``forward`` returns a ``(2, batch)`` tensor.
+
+    Initialised from a :class:`TwinQCritic` (orthogonal init as there), so both forms start
+    from the same weights.
+
+    Args:
+        obs_dim, act_dim: input sizes.
+        hidden_sizes: hidden layer widths (ReLU), the same for both networks.
+    """
+
+    def __init__(
+        self, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)
+    ) -> None:
+        super().__init__()
+        hidden = [int(h) for h in hidden_sizes]
+        if not hidden:
+            raise ValueError("FusedTwinQ needs at least one hidden layer")
+        twin = TwinQCritic(obs_dim, act_dim, hidden)
+        nets = [[m for m in twin.q1 if isinstance(m, nn.Linear)],
+                [m for m in twin.q2 if isinstance(m, nn.Linear)]]
+        first = [net[0] for net in nets]
+        self.hidden = hidden
+        self.w_in = nn.Parameter(torch.cat([f.weight.detach().T for f in first], dim=1))
+        self.b_in = nn.Parameter(torch.cat([f.bias.detach() for f in first]))
+        self.weights = nn.ParameterList()
+        self.biases = nn.ParameterList()
+        for layer in range(1, len(hidden) + 1):
+            self.weights.append(nn.Parameter(
+                torch.stack([net[layer].weight.detach().T for net in nets]).contiguous()))
+            self.biases.append(nn.Parameter(
+                torch.stack([net[layer].bias.detach()[None] for net in nets]).contiguous()))
+
+    def forward(
+        self, obs: torch.Tensor, act: torch.Tensor, params: Sequence[torch.Tensor] | None = None
+    ) -> torch.Tensor:
+        """``(Q1, Q2)`` stacked, shape ``(2, batch)``.
+
+        Args:
+            params: the parameters to use in :meth:`parameters` order (e.g. detached copies, so
+                that the actor's loss does not compute critic weight gradients); None = own.
+        """
+        w_in, b_in, *rest = list(self.parameters()) if params is None else list(params)
+        n = len(self.hidden)
+        weights, biases = rest[:n], rest[n:]
+        x = torch.cat([obs, act], dim=-1)
+        h = torch.relu(torch.addmm(b_in, x, w_in))
+        h = h.view(x.shape[0], 2, self.hidden[0]).transpose(0, 1)
+        for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
+            h = torch.baddbmm(b, h, w)
+            if i < n - 1:
+                h = torch.relu(h)
+        return h.squeeze(-1)

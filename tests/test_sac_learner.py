@@ -1,0 +1,209 @@
+"""SAC's round loop and learner process (semdp/README.md, "SAC learner process"): the fused twin
+critic and the shared replay buffer against their plain forms, the same numbers in a learner
+process as inline, exact resume, and a learner process that ends with training -- also on
+errors, on Ctrl-C and when it dies itself."""
+
+from __future__ import annotations
+
+import csv
+import functools
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import DictConfig, open_dict
+
+import semdp.algos.sac as sac_module
+from semdp.algos.learner_host import LearnerError, ProcessLearner
+from semdp.algos.replay_shared import SharedReplayBuffer
+from semdp.algos.sac import SAC
+from semdp.algos.twin_q import FusedTwinQ
+from semdp.common.buffers import ReplayBuffer
+from semdp.common.logger import TIMING_COLUMNS
+from semdp.common.networks import TwinQCritic
+from semdp.train import build_algorithm, run
+
+#: The tiny SAC of tests/conftest.py with the round loop (16 env steps per round).
+ROUNDS = ["algo.sync_every=16"]
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with (path / "progress.csv").open() as f:
+        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(f)]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    stat = Path(f"/proc/{pid}/stat")
+    return not (stat.exists() and stat.read_text().split()[2] == "Z")
+
+
+@pytest.fixture
+def hosts(monkeypatch: pytest.MonkeyPatch) -> list[ProcessLearner]:
+    """Every ProcessLearner SAC starts during the test."""
+    made: list[ProcessLearner] = []
+
+    def record(*args, **kwargs) -> ProcessLearner:
+        host = ProcessLearner(*args, **kwargs)
+        made.append(host)
+        return host
+
+    monkeypatch.setattr(sac_module, "ProcessLearner", record)
+    return made
+
+
+def test_fused_twin_q_is_the_twin_critic() -> None:
+    torch.manual_seed(3)
+    fused = FusedTwinQ(7, 2, (32, 16))
+    torch.manual_seed(3)
+    twin = TwinQCritic(7, 2, (32, 16))
+    obs, act = torch.randn(9, 7), torch.randn(9, 2)
+    q1, q2 = twin(obs, act)
+    torch.testing.assert_close(fused(obs, act), torch.stack([q1, q2]), rtol=0, atol=1e-6)
+    frozen = [p.detach() for p in fused.parameters()]
+    assert not fused(obs, act, frozen).requires_grad
+
+
+@pytest.mark.parametrize("shared", [False, True])
+def test_shared_replay_buffer_is_the_replay_buffer(shared: bool) -> None:
+    plain, ours = ReplayBuffer(10, 3, 2), SharedReplayBuffer(10, 3, 2, shared=shared)
+    rng = np.random.default_rng(0)
+    for n in (4, 3, 5, 12, 1):  # wraps around, and one batch larger than the capacity
+        batch = (rng.normal(size=(n, 3)), rng.normal(size=(n, 2)), rng.normal(size=n),
+                 rng.normal(size=n), rng.normal(size=(n, 3)), rng.integers(0, 2, n))
+        plain.add_batch(*batch)
+        ours.add_batch(*batch)
+        assert (ours.pos, ours.size) == (plain.pos, plain.size)
+        for name in ("obs", "next_obs", "actions", "rewards", "costs", "terminated"):
+            np.testing.assert_array_equal(ours.arrays[name], getattr(plain, name))
+            np.testing.assert_array_equal(ours.tensors[name].numpy(), getattr(plain, name))
+    state = ours.state_dict()
+    assert set(state) == set(plain.state_dict())
+    again = SharedReplayBuffer(10, 3, 2)
+    again.load_state_dict(state)
+    np.testing.assert_array_equal(again.arrays["obs"], ours.arrays["obs"])
+
+
+def test_learner_process_gives_the_inline_numbers(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, hosts: list[ProcessLearner]
+) -> None:
+    inline = run(tiny_train("sac", *ROUNDS, "algo.learner=inline"), tmp_path / "inline")
+    process = run(tiny_train("sac", *ROUNDS, "algo.learner=process"), tmp_path / "process")
+    assert len(hosts) == 1 and not _alive(hosts[0].process.pid)
+    a, b = _rows(tmp_path / "inline"), _rows(tmp_path / "process")
+    assert a == b and a[-1]["loss_q"] != "" and a[-1]["alpha"] != "1.0"
+    assert inline["eval"] == process["eval"]
+
+
+def test_round_loop_resumes_exactly_after_a_crash(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    hosts: list[ProcessLearner],
+) -> None:
+    config = functools.partial(tiny_train, "sac", *ROUNDS, "algo.learner=process",
+                               "checkpoint_every=1")
+    reference = run(config(), tmp_path / "ref")
+    original = SAC.train_epoch
+
+    def crash_in_epoch_3(self: SAC) -> dict[str, float]:
+        if self.epoch == 2:
+            raise RuntimeError("simulated crash")
+        return original(self)
+
+    monkeypatch.setattr(SAC, "train_epoch", crash_in_epoch_3)
+    with pytest.raises(RuntimeError, match="simulated crash"):
+        run(config(), tmp_path / "crashed")
+    assert not _alive(hosts[-1].process.pid)  # the learner process ended with the error
+    monkeypatch.setattr(SAC, "train_epoch", original)
+    resumed_cfg = config()
+    with open_dict(resumed_cfg):
+        resumed_cfg.resume = str(tmp_path / "crashed")
+    resumed = run(resumed_cfg, tmp_path / "ignored")
+    assert _rows(tmp_path / "crashed") == _rows(tmp_path / "ref")
+    assert resumed["eval"] == reference["eval"] and resumed["status"] == "completed"
+    assert all(not _alive(h.process.pid) for h in hosts)
+
+
+def test_keyboard_interrupt_stops_the_learner_process(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    hosts: list[ProcessLearner],
+) -> None:
+    algo = build_algorithm(tiny_train("sac", *ROUNDS, "algo.learner=process"))
+    step = algo.envs.step
+    calls = {"n": 0}
+
+    def interrupted(actions):  # Ctrl-C while collecting, with a round of updates running
+        calls["n"] += 1
+        if calls["n"] == 90:
+            raise KeyboardInterrupt
+        return step(actions)
+
+    monkeypatch.setattr(algo.envs, "step", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        algo.learn(total_steps=800, run_dir=tmp_path)
+    assert len(hosts) == 1 and algo._host is None
+    assert not _alive(hosts[0].process.pid)
+
+
+def test_a_dead_learner_process_fails_the_run_instead_of_hanging(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, hosts: list[ProcessLearner],
+) -> None:
+    algo = build_algorithm(tiny_train("sac", *ROUNDS, "algo.learner=process"))
+    algo.train_epoch()  # learning starts: the process runs rounds
+    os.kill(hosts[0].process.pid, signal.SIGKILL)
+    start = time.monotonic()
+    with pytest.raises(LearnerError, match=r"died|hung up"):
+        algo.train_epoch()
+    assert time.monotonic() - start < 30
+    algo.close(keep_state=False)
+
+
+def test_ctrl_c_on_semdp_train_ends_training_and_learner(tmp_path: Path) -> None:
+    """A real SIGINT to ``semdp-train`` (as a terminal's Ctrl-C): the run is recorded as failed
+    and no learner process is left behind."""
+    cmd = [sys.executable, "-m", "semdp.train", "algo=sac", "env=speed_limit", "budget=ci",
+           "total_steps=200000", "budget.steps_per_epoch=400", "algo.learning_starts=100",
+           "algo.batch_size=32", "algo.hidden_sizes=[16,16]", "algo.buffer_size=5000",
+           "algo.learner=process", "tensorboard=false", f"hydra.run.dir={tmp_path}"]
+    train = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+    def learners() -> list[int]:
+        found = []
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                fields = stat.read_text().rsplit(")", 1)[1].split()
+                cmdline = (stat.parent / "cmdline").read_bytes()
+            except OSError:
+                continue
+            if int(fields[1]) == train.pid and b"semdp.algos.learner_process" in cmdline:
+                found.append(int(stat.parent.name))
+        return found
+
+    deadline = time.monotonic() + 60
+    while not learners() and time.monotonic() < deadline and train.poll() is None:
+        time.sleep(0.2)
+    pids = learners()
+    assert pids, "the learner process never started"
+    time.sleep(1.0)  # inside the round loop
+    train.send_signal(signal.SIGINT)
+    _, err = train.communicate(timeout=60)
+    assert train.returncode != 0
+    assert b"KeyboardInterrupt" in err
+    for pid in pids:
+        for _ in range(50):
+            if not _alive(pid):
+                break
+            time.sleep(0.1)
+        assert not _alive(pid)
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["status"] == "failed" and "KeyboardInterrupt" in metrics["error"]
