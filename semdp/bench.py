@@ -18,6 +18,7 @@ SUITES: dict[str, str] = {
     "sims": "semdp.benchmarks.sims",
     "driving": "semdp.benchmarks.driving",
     "train": "semdp.benchmarks.train",
+    "semdp": "semdp.benchmarks.semdp",
     "safety": "semdp.benchmarks.safety",
 }
 
