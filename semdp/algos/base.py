@@ -155,24 +155,27 @@ class Algorithm(ABC):
             raise RuntimeError("no eval_envs were given to this algorithm")
         envs = self.eval_envs
         obs, _ = envs.reset(seed=self.seed + EVAL_SEED_OFFSET if seed is None else seed)
-        stepper = stepper_for(envs)
+        stepper = self.evaluation_stepper(envs)
         n = envs.num_envs
         # A fixed quota of episodes per sub-env, so short episodes are not over-represented.
         quota = np.array([episodes // n + (i < episodes % n) for i in range(n)])
         ret, cost = np.zeros(n), np.zeros(n)
         results: list[tuple[float, float, float | None]] = []
-        while len(results) < episodes:
-            step = stepper.step(self.predict(obs, deterministic=True))
-            obs = step.obs
-            ret += step.rewards
-            cost += step.costs
-            ended = np.flatnonzero(step.ended)
-            successes = step.successes if len(ended) else {}
-            for i in ended:
-                if quota[i] > 0:
-                    quota[i] -= 1
-                    results.append((float(ret[i]), float(cost[i]), successes[i]))
-                ret[i] = cost[i] = 0.0
+        try:
+            while len(results) < episodes:
+                step = stepper.step(self.predict(obs, deterministic=True))
+                obs = step.obs
+                ret += step.rewards
+                cost += step.costs
+                ended = np.flatnonzero(step.ended)
+                successes = step.successes if len(ended) else {}
+                for i in ended:
+                    if quota[i] > 0:
+                        quota[i] -= 1
+                        results.append((float(ret[i]), float(cost[i]), successes[i]))
+                    ret[i] = cost[i] = 0.0
+        finally:
+            stepper.close()
         rets = np.array([r[0] for r in results])
         csts = np.array([r[1] for r in results])
         succ = [r[2] for r in results if r[2] is not None]
@@ -184,6 +187,14 @@ class Algorithm(ABC):
             "cost_std": float(csts.std()),
             "success_rate": float(np.mean(succ)) if succ else None,
         }
+
+    def evaluation_stepper(self, envs: gym.vector.VectorEnv) -> Any:
+        """What steps ``envs`` during :meth:`evaluate` (closed afterwards): in this process.
+
+        Every evaluation resets ``envs`` with its seed first, so how they were stepped before
+        does not matter.
+        """
+        return stepper_for(envs)
 
     def env_snapshot(self) -> Any:
         """The training vector env as a checkpoint stores it (pickled with the checkpoint)."""

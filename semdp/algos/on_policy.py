@@ -337,6 +337,13 @@ class OnPolicyAlgorithm(Algorithm):
         return self.update_critics(batch)
 
     # ----------------------------------------------------------------- helpers and state
+    def evaluation_stepper(self, envs: gym.vector.VectorEnv) -> Any:
+        """With ``async`` (and plain sub-envs), evaluation envs are split with a helper too."""
+        if self.vectorization == "async" and _plain_sub_envs(envs) and envs.num_envs > 1:
+            local = (envs.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1]
+            return AsyncStepper(envs, local=local)
+        return super().evaluation_stepper(envs)
+
     def env_snapshot(self) -> Any:
         """The training env for a checkpoint; with ``async``, the helper's live one.
 
