@@ -4,7 +4,8 @@ before the config and module restructuring (tests/data/golden, commit d56383e).
 Wall-clock columns (``wall_time_s``, ``fps``, ``time_*``) are excluded; every other column the
 golden file has must match to 1e-9 relative (exact on the machine that recorded them). Defaults
 changed on purpose since then are switched back to the recorded setting by the overrides below
-(the IPOPT rescue for the Point, which the recording did not have).
+(the IPOPT rescue for the Point and the low-level safety filter, which the recording did not
+have).
 """
 
 from __future__ import annotations
@@ -44,8 +45,8 @@ def _is_clock(column: str) -> bool:
     [
         ("ppo_lag_point_goal1_ci_s0.csv",
          ["algo=ppo_lag", "env=point_goal1", "budget=ci", "seed=0"]),
-        ("semdp_ci_s0.csv", ["experiment=semdp", "budget=ci", "seed=0",
-                             "robot.rescue_backend=null"]),
+        ("semdp_ci_s0.csv", ["experiment=semdp", "budget=ci", "seed=0", "loop=sequential",
+                             "robot.rescue_backend=null", "env.shield=null"]),
     ],
 )
 def test_progress_matches_golden(

@@ -11,6 +11,7 @@ import numpy as np
 
 from semdp.embedded.follower import Follower, PolicyFollower, default_follower
 from semdp.embedded.perception import OBSTACLE_KINDS, perceive_obstacles
+from semdp.embedded.shield import SafetyShield
 from semdp.embedded.tracking import ego_to_world, select_tracking_index
 from solvers.planner import SafeTrajectoryPlanner
 
@@ -40,6 +41,7 @@ class Window:
     truncated: bool = False
     info: dict[str, Any] = field(default_factory=dict)
     cost_terms: dict[str, float] = field(default_factory=dict)
+    shield_interventions: int = 0
 
 
 class SafetyEmbeddedEnv(gym.Wrapper):
@@ -90,6 +92,10 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         draw_plan: pass the plan and subgoal to the env's renderer overlay.
         frame_every: with ``render_mode="rgb_array"``, record a frame every this many low-level
             steps into :attr:`frames` (0 = off); used for the evaluation GIF.
+        shield: a last-line filter on every low-level action
+            (:class:`~semdp.embedded.shield.SafetyShield`: one step then braking must stay out of
+            every cost region, else brake or escape); None = the thesis' plain follower.
+            ``info["shield_interventions"]`` counts the window's replaced actions.
     """
 
     def __init__(
@@ -105,6 +111,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         brake_steps: int = 0,
         draw_plan: bool = True,
         frame_every: int = 0,
+        shield: SafetyShield | None = None,
     ) -> None:
         super().__init__(env)
         if k < 1:
@@ -142,6 +149,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         self.brake_steps = int(brake_steps)
         self.draw_plan = draw_plan
         self.frame_every = int(frame_every)
+        self.shield = shield
         self.frames: list[np.ndarray] = []
         self.timing: dict[str, float] = dict.fromkeys(TIMING_KEYS, 0.0)
         self.high_level_steps = 0
@@ -234,6 +242,12 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         alike: a low-level safety filter that replaces the follower's action belongs here, just
         before ``self.env.step``.
         """
+        if self.shield is not None:
+            t0 = time.perf_counter()
+            safe = self.shield.filter(low_action, self.env.unwrapped, window.obs)
+            window.shield_interventions += safe is not low_action
+            low_action = safe
+            window.follow_s += time.perf_counter() - t0
         t0 = time.perf_counter()
         obs, reward, terminated, truncated, info = self.env.step(low_action)
         window.sim_s += time.perf_counter() - t0
@@ -277,6 +291,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             plan_rescued=bool(getattr(plan, "rescued", False)),
             plan_min_clearance=float(getattr(plan, "min_clearance", np.inf)),
             low_level_steps=window.steps,
+            shield_interventions=window.shield_interventions,
             **step_timing,
         )
         return window.obs, window.reward, window.terminated, window.truncated, out
