@@ -12,7 +12,8 @@ policies that were never trained, under the evaluation configuration (the env's
     semdp-bench safety robots=car tasks=Push2 policies=adversarial configs=eval episodes=5
     semdp-bench safety robots=point tasks=Push1 planner@env.planner=ipopt    # + Hydra overrides
 
-Prints one row per cell (episodes with cost, cost steps, fallback %, escape %, rescue %,
+Prints one row per cell (episodes with cost, cost steps, fallback %, escape %, rescue % of the
+high-level steps, shield % of the low-level steps whose command the safety filter replaced,
 high-level steps/s, violation sources) and writes ``safety.csv`` / ``safety.json`` under
 ``out=`` (default ``outputs/bench/safety_<time>``). Episodes are seeded ``seed + i`` (default
 seed 7000: not a seed range any setting was tuned on).
@@ -134,15 +135,16 @@ def _choice(value: str, valid: tuple[str, ...], what: str) -> tuple[str, ...]:
 def format_table(rows: list[dict[str, Any]]) -> str:
     """The printed table: one line per cell."""
     head = (f"{'robot':6} {'task':6} {'policy':11} {'config':6} {'ep w/ cost':>10} "
-            f"{'cost steps':>10} {'fallback%':>9} {'escape%':>8} {'rescue%':>8} {'hl/s':>6}"
-            "  sources")
+            f"{'cost steps':>10} {'fallback%':>9} {'escape%':>8} {'rescue%':>8} {'shield%':>8}"
+            f" {'hl/s':>6}  sources")
     lines = [head, "-" * len(head)]
     for r in rows:
         lines.append(
             f"{r['robot']:6} {r['task']:6} {r['policy']:11} {r['config']:6} "
             f"{r['episodes_with_cost']:>4}/{r['episodes']:<5} {r['cost_steps_total']:>10.0f} "
             f"{100 * r['fallback_rate']:>9.1f} {100 * r['escape_rate']:>8.1f} "
-            f"{100 * r['rescue_rate']:>8.1f} {r['high_level_steps_per_s']:>6.0f}  "
+            f"{100 * r['rescue_rate']:>8.1f} {100 * r['shield_rate']:>8.2f} "
+            f"{r['high_level_steps_per_s']:>6.0f}  "
             f"{r['violation_windows_by_source'] or ''}")
     return "\n".join(lines)
 

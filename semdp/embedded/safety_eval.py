@@ -98,7 +98,7 @@ def evaluate_safety(
     base = env.unwrapped
     clearance = float(getattr(env.planner, "clearance", 0.5))
     returns, costs, sources = [], [], Counter()
-    plans = fallbacks = escapes = rescues = 0
+    plans = fallbacks = escapes = rescues = shielded = low_steps = 0
     violations: list[dict[str, Any]] = []
     tic = time.perf_counter()
     for episode in range(episodes):
@@ -112,6 +112,8 @@ def evaluate_safety(
             fallbacks += bool(info["plan_fallback"])
             escapes += bool(info["plan_escape"])
             rescues += bool(info.get("plan_rescued", False))
+            shielded += int(info.get("shield_interventions", 0))
+            low_steps += int(info.get("low_level_steps", 0))
             ret += reward
             if info["cost"] > 0:
                 source = classify_window(plan, true_obstacles, clearance)
@@ -136,6 +138,7 @@ def evaluate_safety(
         "fallback_rate": fallbacks / max(plans, 1),
         "escape_rate": escapes / max(plans, 1),
         "rescue_rate": rescues / max(plans, 1),
+        "shield_rate": shielded / max(low_steps, 1),
         "high_level_steps_per_s": plans / max(time.perf_counter() - tic, 1e-9),
         "violations": violations[:50],
     }

@@ -1,0 +1,45 @@
+"""``semdp-bench safety`` on a small slice: the adversarial policy's aim (planted layout), zero
+cost under it with the evaluation and the training configuration, and the written table."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from semdp.benchmarks.safety import build_semdp_env, main, make_policy
+
+
+def test_adversarial_policy_aims_at_the_nearest_hazard() -> None:
+    env = build_semdp_env("mass", "Goal1", "eval")
+    layout = {"agent": (0.0, 0.0), "agent_yaw": 0.0, "hazards": [(1.0, 0.0), (-1.5, 1.5)],
+              "vases": [(1.5, -1.5)], "goal": (-1.5, -1.5)}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    action = make_policy("adversarial", env, seed=0)(obs)
+    # 1 m ahead in the ego frame, in units of the 2 m subgoal scale
+    np.testing.assert_allclose(action, [0.5, 0.0], atol=1e-9)
+    with pytest.raises(ValueError, match="policy"):
+        make_policy("greedy", env, seed=0)
+
+
+def test_small_slice_has_no_cost_and_writes_the_table(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    main(["robots=mass", "tasks=Push1", "policies=adversarial", "configs=eval,train",
+          "episodes=1", "workers=1", "seed=7100", f"out={tmp_path}"])
+    printed = capsys.readouterr().out
+    assert "2 cells, 2 episodes" in printed and "0 with cost" in printed
+    rows = list(csv.DictReader((tmp_path / "safety.csv").open()))
+    assert [(r["config"], r["policy"]) for r in rows] == [("eval", "adversarial"),
+                                                          ("train", "adversarial")]
+    for row in rows:
+        assert int(row["episodes_with_cost"]) == 0 and float(row["cost_steps_total"]) == 0.0
+        assert int(row["plans"]) == 100  # 1000 low-level steps / k = 10
+
+
+def test_bad_arguments_exit_with_one_line() -> None:
+    with pytest.raises(SystemExit, match="robots must be a comma list"):
+        main(["robots=hovercraft"])
+    with pytest.raises(SystemExit, match="unknown argument 'speed'"):
+        main(["speed=3"])
