@@ -101,6 +101,13 @@ def test_async_stepper_continues_exactly_and_returns_its_envs(local: int) -> Non
             np.testing.assert_array_equal(remote.step(actions).obs,
                                           local_stepper.step(actions).obs)
         assert remote.busy_seconds > 0
+        # a checkpoint's snapshot: the helper's sub-envs pickled there, the trainer's here
+        restored = pickle.loads(pickle.dumps(remote.snapshot()))
+        pickle.dumps(here)
+        actions = _actions(rng, here)
+        expected = local_stepper.step(actions).obs
+        np.testing.assert_array_equal(VectorStepper(restored).step(actions).obs, expected)
+        np.testing.assert_array_equal(remote.step(actions).obs, expected)
     finally:
         remote.close()
     with pytest.raises(RuntimeError):

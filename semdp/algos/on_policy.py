@@ -353,7 +353,7 @@ class OnPolicyAlgorithm(Algorithm):
         if not isinstance(self._stepper, AsyncStepper):
             return self.envs
         try:
-            return self._stepper.gather()
+            return self._stepper.snapshot()
         except RuntimeError as exc:
             if not self._warned_unpicklable:
                 logger.warning("the env helper cannot pickle the envs (%s): checkpoints omit "

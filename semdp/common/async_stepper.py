@@ -11,10 +11,13 @@ request per step and, when episodes end, their last observations and success ent
 
 from __future__ import annotations
 
+import copy
 import mmap
 import pickle
 import time
 import traceback
+from collections.abc import Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -72,8 +75,9 @@ class _Server:
             if request == _STEP:
                 return self._step()
             if request == _STATE:
-                subs = [self.envs.envs[i] for i in self.indices]
-                return _OK + pickle.dumps(subs, protocol=STATE_PROTOCOL)
+                blobs = [pickle.dumps(self.envs.envs[i], protocol=STATE_PROTOCOL)
+                         for i in self.indices]
+                return _OK + pickle.dumps(blobs, protocol=pickle.HIGHEST_PROTOCOL)
             raise ValueError(f"unknown request {request!r}")
         except Exception:  # reported to the trainer, which raises it
             return _ERROR + traceback.format_exc().encode()
@@ -90,6 +94,17 @@ class _Server:
         extra = pickle.dumps((result.final_obs, result.final_infos)) if result.final_obs else b""
         s.busy_s[0] += time.perf_counter() - start
         return _OK + extra
+
+
+class PickledEnv:
+    """A sub-env pickled in the helper; pickling this pickles to that env (a checkpoint entry
+    that unpickles to the sub-env itself, without a second pickling in the trainer)."""
+
+    def __init__(self, blob: bytes) -> None:
+        self.blob = blob
+
+    def __reduce__(self) -> tuple[Callable[[bytes], Any], tuple[bytes]]:
+        return pickle.loads, (self.blob,)
 
 
 class AsyncStepper:
@@ -148,14 +163,25 @@ class AsyncStepper:
         self.step_async(actions)
         return self.step_wait()
 
-    def gather(self) -> gym.vector.SyncVectorEnv:
-        """The vector env with the helper's sub-envs brought back (pickled there, as a
-        checkpoint pickles sub-envs); the helper keeps stepping its own."""
+    def _helper_blobs(self) -> list[bytes]:
         if self._pending is not None:
-            raise RuntimeError("gather() while a step is running")
+            raise RuntimeError("the envs were requested while a step is running")
         self._worker.send(_STATE)
-        subs = pickle.loads(self._reply())
-        self.envs.envs[self.local:] = subs
+        return pickle.loads(self._reply())
+
+    def snapshot(self) -> gym.vector.SyncVectorEnv:
+        """A copy of the vector env for a checkpoint: the trainer's sub-envs as they are, the
+        helper's as pickles made there (as a checkpoint pickles sub-envs; they unpickle to the
+        sub-envs). The helper keeps stepping its own; the trainer's env is not changed."""
+        snapshot = copy.copy(self.envs)
+        snapshot.envs = [*self.envs.envs[: self.local],
+                         *(PickledEnv(blob) for blob in self._helper_blobs())]
+        return snapshot
+
+    def gather(self) -> gym.vector.SyncVectorEnv:
+        """The trainer's vector env with the helper's sub-envs brought back (pickled there, as
+        a checkpoint pickles sub-envs); the helper keeps stepping its own."""
+        self.envs.envs[self.local:] = [pickle.loads(blob) for blob in self._helper_blobs()]
         return self.envs
 
     @property
