@@ -86,7 +86,9 @@ def test_every_preset_robot_method_composes_the_robots_settings(
 def test_env_route_and_preset_route_compose_the_same_semdp_node(
     robot: str, task: str, preset: str
 ) -> None:
-    direct = _resolved(compose_config("train", ["experiment=semdp",
+    # loop=sequential: the presets run one env per job (the main job's default runs several
+    # in lockstep, conf/loop/pipelined.yaml); the SEMDP node is otherwise the same
+    direct = _resolved(compose_config("train", ["experiment=semdp", "loop=sequential",
                                                 f"env=semdp_{robot}_{task}"]).env)
     via_preset = _resolved(compose_config("train", [f"experiment={preset}", "budget=laptop",
                                                     f"robot={robot}", "method=ours"]).env)

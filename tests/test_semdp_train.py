@@ -24,7 +24,10 @@ TINY_SAC = ["algo.learning_starts=20", "algo.batch_size=16", "algo.hidden_sizes=
 def test_semdp_main_preset_trains_and_writes_artefacts(
     compose_train: Callable[..., DictConfig], tmp_path: Path
 ) -> None:
-    cfg = compose_train("experiment=semdp", "env=semdp_mass_push1", *TINY_SEMDP, *TINY_SAC)
+    # The main job's loop (conf/loop/pipelined.yaml), with 2 lockstep envs so that 30 divides.
+    cfg = compose_train("experiment=semdp", "env=semdp_mass_push1", *TINY_SEMDP, *TINY_SAC,
+                        "env.num_envs=2")
+    assert cfg.algo.learner == "process" and cfg.env.vector.endswith("LockstepVectorEnv")
     metrics = run(cfg, tmp_path)
     saved = json.loads((tmp_path / "metrics.json").read_text())
     assert saved["status"] == "completed" and saved["label"] == "Ours"
