@@ -180,3 +180,27 @@ def test_async_resume_matches_the_uninterrupted_sync_run(
     run(resumed, tmp_path / "ignored")
     assert _rows(tmp_path / "split") == _rows(tmp_path / "ref")
     assert not mp.active_children()
+
+
+def test_auto_vectorization_moves_slow_envs_to_the_helper_after_the_first_rollout(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from semdp.algos import on_policy
+    from semdp.train import build_algorithm
+
+    cheap = build_algorithm(tiny_train("ppo"))
+    assert cheap.vectorization == "auto"
+    cheap.train_epoch()
+    assert cheap.vectorization == "sync"  # the test CMDP steps in microseconds
+    cheap.close_helpers()
+    monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 0.0)  # every env counts as slow
+    run(tiny_train("ppo", "+algo.parallel_critics=false"), tmp_path / "auto")
+    run(tiny_train("ppo", *SYNC), tmp_path / "sync")
+    assert _rows(tmp_path / "auto") == _rows(tmp_path / "sync")
+    switching = build_algorithm(tiny_train("ppo"))
+    switching.train_epoch()
+    assert switching.vectorization == "async"
+    switching.train_epoch()
+    assert switching.timer.seconds["simulation_worker"] > 0
+    switching.close_helpers()
+    assert not mp.active_children()

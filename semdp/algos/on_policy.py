@@ -11,9 +11,11 @@ same ``progress.csv``; semdp/README.md, "Throughput"):
   (:class:`~semdp.common.critic_worker.CriticWorker`) while the actor updates; the helper gets
   the permutations the trainer's generator would have drawn for them.
 
-``"auto"`` turns each on when the platform can fork and two CPUs are available, and keeps the
-envs in the trainer when a sub-env carries a wrapper of its own (its state, e.g. the SEMDP
-wrapper's timings, is read from the trainer's copy).
+``"auto"`` turns each on when the platform can fork and two CPUs are available; the envs move
+to the helper after the first rollout if stepping them took at least
+:data:`ASYNC_MIN_STEP_S` per vector step (cheaper envs cost less than the pipe to the helper),
+and stay in the trainer when a sub-env carries a wrapper of its own (its state, e.g. the SEMDP
+wrapper's timings, is read from the trainer's copy). Switching changes no number.
 """
 
 from __future__ import annotations
@@ -43,6 +45,9 @@ from semdp.common.vector_stepping import MergedInfoStepper, VectorStepper, stepp
 logger = logging.getLogger(__name__)
 
 VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
+#: ``vectorization="auto"``: seconds per vector step of the envs (first rollout, in this
+#: process) from which they move to the helper.
+ASYNC_MIN_STEP_S = 2e-4
 #: Fraction of the sub-envs the trainer steps itself with ``async`` (it also runs the critics
 #: during the step, so it takes a little less than half).
 TRAINER_SHARE: tuple[int, int] = (2, 5)
@@ -153,9 +158,10 @@ class OnPolicyAlgorithm(Algorithm):
         self.last_ep_cost: float | None = None
         self.last_ep_length: float | None = None
         helpers = fork_available() and _cpus() >= 2
+        #: ``"sync"``, ``"async"``, or ``"auto"`` until the first rollout has been timed.
         self.vectorization = vectorization
-        if vectorization == "auto":
-            self.vectorization = "async" if helpers and _plain_sub_envs(envs) else "sync"
+        if vectorization == "auto" and not (helpers and _plain_sub_envs(envs)):
+            self.vectorization = "sync"
         if self.vectorization == "async" and not fork_available():
             raise ValueError("vectorization='async' needs the 'fork' start method")
         self.parallel_critics = helpers if parallel_critics == "auto" else bool(parallel_critics)
@@ -200,6 +206,7 @@ class OnPolicyAlgorithm(Algorithm):
         buf = self.buffer
         buf.reset()
         stepper = self._training_stepper()
+        simulation_before = seconds["simulation"]
         raw_obs = np.zeros((self.n_steps, self.num_envs, self.obs_dim))
         boot_r = np.zeros((self.n_steps, self.num_envs))
         boot_c = np.zeros((self.n_steps, self.num_envs))
@@ -249,6 +256,11 @@ class OnPolicyAlgorithm(Algorithm):
         stats = self._pop_episode_stats()
         if stats["episodes"]:
             self.last_ep_cost, self.last_ep_length = stats["ep_cost"], stats["ep_length"]
+        if self.vectorization == "auto":  # decide from this rollout's stepping time
+            step_s = (seconds["simulation"] - simulation_before) / self.n_steps
+            self.vectorization = "async" if step_s >= ASYNC_MIN_STEP_S else "sync"
+            if self.vectorization == "async":
+                self._stepper = None  # forked at the next rollout
         if isinstance(stepper, AsyncStepper):
             busy = stepper.busy_seconds
             seconds["simulation_worker"] += busy - self._stepper_busy_seen
