@@ -149,6 +149,36 @@ def format_table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def markdown_table(rows: list[dict[str, Any]], seed: int, episodes: int) -> str:
+    """The table for a README: one row per robot x task, the four policy x config cells as
+    ``episodes with cost / episodes`` and the fallback, escape, rescue and shield rates."""
+    lines = [f"Episodes with cost / episodes (seeds {seed}..{seed + episodes - 1}); fallback, "
+             "escape and rescue % of the plans and shield % of the low-level commands, over "
+             "the four cells; high-level steps/s (mean of the cells).", "",
+             "| robot | task | random, eval | random, train | adversarial, eval | "
+             "adversarial, train | cost steps | fallback % | escape % | rescue % | shield % | "
+             "hl steps/s |", "|" + "---|" * 12]
+    cells: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for row in rows:
+        cells.setdefault((row["robot"], row["task"]), []).append(row)
+    for (robot, task), group in cells.items():
+        by = {(r["policy"], r["config"]): r for r in group}
+        shown = [by.get((p, c)) for p in POLICIES for c in CONFIGS]
+        marks = [f"{r['episodes_with_cost']}/{r['episodes']}" if r else "–" for r in shown]
+
+        def rate(key: str, rows: list[dict[str, Any]] = group) -> str:
+            total = sum(r["plans"] for r in rows)
+            return f"{100 * sum(r[key] * r['plans'] for r in rows) / max(total, 1):.1f}"
+
+        lines.append(
+            f"| {robot.capitalize()} | {task} | {' | '.join(marks)} | "
+            f"{sum(r['cost_steps_total'] for r in group):.0f} | {rate('fallback_rate')} | "
+            f"{rate('escape_rate')} | {rate('rescue_rate')} | "
+            f"{100 * sum(r['shield_rate'] for r in group) / len(group):.2f} | "
+            f"{sum(r['high_level_steps_per_s'] for r in group) / len(group):.0f} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> None:
     """CLI: see the module docstring."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -188,4 +218,5 @@ def main(argv: list[str] | None = None) -> None:
         for r in rows:
             writer.writerow({**{k: r[k] for k in columns},
                              "sources": json.dumps(r["violation_windows_by_source"])})
-    print(f"wrote {out / 'safety.csv'}")
+    (out / "safety.md").write_text(markdown_table(rows, seed, episodes))
+    print(f"wrote {out / 'safety.csv'} and safety.md")
