@@ -182,25 +182,29 @@ def test_async_resume_matches_the_uninterrupted_sync_run(
     assert not mp.active_children()
 
 
-def test_auto_vectorization_moves_slow_envs_to_the_helper_after_the_first_rollout(
+def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from semdp.algos import on_policy
     from semdp.train import build_algorithm
 
     cheap = build_algorithm(tiny_train("ppo"))
-    assert cheap.vectorization == "auto"
-    cheap.train_epoch()
-    assert cheap.vectorization == "sync"  # the test CMDP steps in microseconds
+    critics = []
+    for _ in range(3):
+        cheap.train_epoch()
+        assert not cheap.envs_in_helper  # the test CMDP steps in microseconds
+        critics.append(cheap.critics_in_helper)
+    assert critics[:2] == [False, True]  # the first two updates measure both ways
     cheap.close_helpers()
     monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 0.0)  # every env counts as slow
-    run(tiny_train("ppo", "+algo.parallel_critics=false"), tmp_path / "auto")
+    run(tiny_train("ppo"), tmp_path / "auto")
     run(tiny_train("ppo", *SYNC), tmp_path / "sync")
     assert _rows(tmp_path / "auto") == _rows(tmp_path / "sync")
-    switching = build_algorithm(tiny_train("ppo"))
-    switching.train_epoch()
-    assert switching.vectorization == "async"
-    switching.train_epoch()
-    assert switching.timer.seconds["simulation_worker"] > 0
-    switching.close_helpers()
+    probing = build_algorithm(tiny_train("ppo"))
+    used = []
+    for _ in range(4):
+        probing.train_epoch()
+        used.append((probing.envs_in_helper, probing.critics_in_helper))
+    assert used[:2] == [(False, False), (True, True)]  # each way measured once, then the faster
+    probing.close_helpers()
     assert not mp.active_children()

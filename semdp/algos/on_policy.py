@@ -11,11 +11,14 @@ same ``progress.csv``; semdp/README.md, "Throughput"):
   (:class:`~semdp.common.critic_worker.CriticWorker`) while the actor updates; the helper gets
   the permutations the trainer's generator would have drawn for them.
 
-``"auto"`` turns each on when the platform can fork and two CPUs are available; the envs move
-to the helper after the first rollout if stepping them took at least
-:data:`ASYNC_MIN_STEP_S` per vector step (cheaper envs cost less than the pipe to the helper),
-and stay in the trainer when a sub-env carries a wrapper of its own (its state, e.g. the SEMDP
-wrapper's timings, is read from the trainer's copy). Switching changes no number.
+``"auto"`` (the default of both) uses a helper where the platform can fork and two CPUs are
+available, and only while it is faster: the first rollout and update run in the trainer, the
+second with the helpers, then :class:`~semdp.common.option_probe.FasterOption` keeps the faster
+way and measures the other again when the load changes (on a machine whose cores other jobs
+keep busy, the helpers only add pipe traffic). Envs whose vector step took less than
+:data:`ASYNC_MIN_STEP_S` in the first rollout stay in the trainer (the pipe costs more), and so
+do sub-envs with a wrapper of their own (its state, e.g. the SEMDP wrapper's timings, is read
+from the trainer's copy). Switching changes no number.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from semdp.common.forked_worker import fork_available
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
 from semdp.common.optim import FlatAdam
+from semdp.common.option_probe import FasterOption
 from semdp.common.vector_stepping import MergedInfoStepper, VectorStepper, stepper_for
 
 logger = logging.getLogger(__name__)
@@ -158,15 +162,17 @@ class OnPolicyAlgorithm(Algorithm):
         self.last_ep_cost: float | None = None
         self.last_ep_length: float | None = None
         helpers = fork_available() and _cpus() >= 2
-        #: ``"sync"``, ``"async"``, or ``"auto"`` until the first rollout has been timed.
-        self.vectorization = vectorization
-        if vectorization == "auto" and not (helpers and _plain_sub_envs(envs)):
-            self.vectorization = "sync"
-        if self.vectorization == "async" and not fork_available():
-            raise ValueError("vectorization='async' needs the 'fork' start method")
-        self.parallel_critics = helpers if parallel_critics == "auto" else bool(parallel_critics)
-        if self.parallel_critics and not fork_available():
-            raise ValueError("parallel_critics needs the 'fork' start method")
+        if "async" in (vectorization, parallel_critics) or parallel_critics is True:
+            if not fork_available():
+                raise ValueError("helper processes need the 'fork' start method")
+        self.vectorization, self.parallel_critics = vectorization, parallel_critics
+        #: Whether the envs step with a helper (per rollout) and the critics regress in one
+        #: (per update): fixed by ``"sync"``/``"async"``/``True``/``False``, probed by ``auto``.
+        self._env_choice = FasterOption(helpers and _plain_sub_envs(envs))
+        self._critic_choice = FasterOption(helpers)
+        self.envs_in_helper = vectorization == "async"
+        self.critics_in_helper = parallel_critics is True
+        self._update_start = 0.0
         self._stepper: VectorStepper | MergedInfoStepper | AsyncStepper | None = None
         self._stepper_busy_seen = 0.0
         self._critic_worker: CriticWorker | None = None
@@ -183,8 +189,13 @@ class OnPolicyAlgorithm(Algorithm):
         return self.to_env_action(a.numpy())
 
     def _training_stepper(self) -> VectorStepper | MergedInfoStepper | AsyncStepper:
+        """The stepper of this rollout (with or without the helper, as chosen for it)."""
+        if self.vectorization == "auto":
+            self.envs_in_helper = self._env_choice.choose()
+        if isinstance(self._stepper, AsyncStepper) != self.envs_in_helper:
+            self._stop_stepper(fetch=True)
         if self._stepper is None:
-            if self.vectorization == "async":
+            if self.envs_in_helper:
                 # the trainer steps a share of the envs too: it waits for the helper otherwise
                 local = (self.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1]
                 self._stepper = AsyncStepper(self.envs, local=local)
@@ -205,6 +216,7 @@ class OnPolicyAlgorithm(Algorithm):
         seconds = self.timer.seconds
         buf = self.buffer
         buf.reset()
+        rollout_start = perf()
         stepper = self._training_stepper()
         simulation_before = seconds["simulation"]
         raw_obs = np.zeros((self.n_steps, self.num_envs, self.obs_dim))
@@ -256,11 +268,10 @@ class OnPolicyAlgorithm(Algorithm):
         stats = self._pop_episode_stats()
         if stats["episodes"]:
             self.last_ep_cost, self.last_ep_length = stats["ep_cost"], stats["ep_length"]
-        if self.vectorization == "auto":  # decide from this rollout's stepping time
-            step_s = (seconds["simulation"] - simulation_before) / self.n_steps
-            self.vectorization = "async" if step_s >= ASYNC_MIN_STEP_S else "sync"
-            if self.vectorization == "async":
-                self._stepper = None  # forked at the next rollout
+        step_s = (seconds["simulation"] - simulation_before) / self.n_steps
+        if not self.envs_in_helper and step_s < ASYNC_MIN_STEP_S:
+            self._env_choice.disallow()  # cheaper than the pipe to a helper
+        self._env_choice.record(self.envs_in_helper, perf() - rollout_start)
         if isinstance(stepper, AsyncStepper):
             busy = stepper.busy_seconds
             seconds["simulation_worker"] += busy - self._stepper_busy_seen
@@ -304,13 +315,17 @@ class OnPolicyAlgorithm(Algorithm):
         return {"loss_v": losses[0], "loss_vc": losses[1]}
 
     def start_critic_update(self, batch: RolloutBatch, skip: int) -> _CriticJob | None:
-        """Start the critic regression in the helper (``None`` without ``parallel_critics``).
+        """Start the critic regression in the helper, if it is used for this update (else
+        ``None``); the update's time is measured until :meth:`finish_critic_update`.
 
         The helper gets the permutations the global generator will draw after ``skip`` more
         draws of ``randperm(batch size)`` (the actor passes that come first); the generator
         itself is not advanced here.
         """
-        if not self.parallel_critics:
+        self._update_start = time.perf_counter()
+        if self.parallel_critics == "auto":
+            self.critics_in_helper = self._critic_choice.choose()
+        if not self.critics_in_helper:
             return None
         n = batch.obs.shape[0]
         generator = torch.Generator()
@@ -337,21 +352,24 @@ class OnPolicyAlgorithm(Algorithm):
         generator draws them too, as a regression here would have); otherwise the job is
         cancelled and the critics regress here.
         """
-        if job is not None and self._critic_worker is not None:
-            if job.skip == drawn:
-                loss_v, loss_vc = self._critic_worker.result(
-                    self.critic_r, self.critic_c, self.critic_optimizer)
-                n = batch.obs.shape[0]
-                for _ in range(self.critic_iters):
-                    torch.randperm(n)
-                return {"loss_v": loss_v, "loss_vc": loss_vc}
-            self._critic_worker.cancel()
-        return self.update_critics(batch)
+        if job is not None and self._critic_worker is not None and job.skip == drawn:
+            loss_v, loss_vc = self._critic_worker.result(
+                self.critic_r, self.critic_c, self.critic_optimizer)
+            n = batch.obs.shape[0]
+            for _ in range(self.critic_iters):
+                torch.randperm(n)
+            stats = {"loss_v": loss_v, "loss_vc": loss_vc}
+        else:
+            if job is not None and self._critic_worker is not None:
+                self._critic_worker.cancel()
+            stats = self.update_critics(batch)
+        self._critic_choice.record(job is not None, time.perf_counter() - self._update_start)
+        return stats
 
     # ----------------------------------------------------------------- helpers and state
     def evaluation_stepper(self, envs: gym.vector.VectorEnv) -> Any:
-        """With ``async`` (and plain sub-envs), evaluation envs are split with a helper too."""
-        if self.vectorization == "async" and _plain_sub_envs(envs) and envs.num_envs > 1:
+        """While the training envs step with a helper, evaluation envs do too (if plain)."""
+        if self.envs_in_helper and _plain_sub_envs(envs) and envs.num_envs > 1:
             local = (envs.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1]
             return AsyncStepper(envs, local=local)
         return super().evaluation_stepper(envs)

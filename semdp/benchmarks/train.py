@@ -12,7 +12,8 @@ the helper that steps them), policy (actor and critic forward passes while actin
 (buffer writes, bookkeeping, GAE) and update (actor and critic optimisation), in percent of the
 wall time; ``helper sim`` is the time the env helper spent stepping (``vectorization=async``),
 which overlaps the rest. ``vectorization`` and ``parallel_critics`` override the on-policy
-algorithms' settings (empty: their default, ``auto``). Results are also written to
+algorithms' settings (empty: their default, ``auto``, which probes both ways in the first two
+epochs; the table shows the way used last). Results are also written to
 ``outputs/bench/train_<env>.csv``. Machine load changes the figures: report it with them.
 """
 
@@ -75,8 +76,8 @@ def measure(
     steps = model.env_steps - steps0
     row: dict[str, Any] = {
         "env": env, "algo": algo, "num_envs": model.num_envs,
-        "vectorization": getattr(model, "vectorization", "sync"),
-        "parallel_critics": getattr(model, "parallel_critics", False),
+        "vectorization": "async" if getattr(model, "envs_in_helper", False) else "sync",
+        "parallel_critics": bool(getattr(model, "critics_in_helper", False)),
         "env_steps": steps, "seconds": round(elapsed, 3), "fps": round(steps / elapsed, 1),
     }
     for phase in SPLIT:
