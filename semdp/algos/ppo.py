@@ -111,14 +111,16 @@ class PPO(OnPolicyAlgorithm):
         actor_params = list(self.actor.parameters())
         loss_pi, entropy, kl, passes = torch.tensor(0.0), torch.tensor(0.0), 0.0, 0
         for _ in range(self.update_iters):
-            perm = torch.randperm(n)
+            perm = torch.randperm(n)  # one gather per pass; minibatches are slices of it
+            obs, actions, old_log_probs, advs = (x[perm] for x in (batch.obs, batch.actions,
+                                                                   batch.log_probs, adv))
             for start in range(0, n, mb):
-                idx = perm[start : start + mb]
-                dist = self.actor.distribution(batch.obs[idx])
-                log_ratio = dist.log_prob(batch.actions[idx]).sum(-1) - batch.log_probs[idx]
+                idx = slice(start, start + mb)
+                dist = self.actor.distribution(obs[idx])
+                log_ratio = dist.log_prob(actions[idx]).sum(-1) - old_log_probs[idx]
                 ratio = log_ratio.exp()
                 clipped = ratio.clamp(1 - self.clip_range, 1 + self.clip_range)
-                surrogate = torch.min(ratio * adv[idx], clipped * adv[idx])
+                surrogate = torch.min(ratio * advs[idx], clipped * advs[idx])
                 entropy = dist.entropy().sum(-1).mean()
                 loss_pi = -surrogate.mean() - self.ent_coef * entropy
                 self.actor_optimizer.zero_grad()

@@ -61,13 +61,15 @@ def regress_critics(
     n = targets.obs.shape[0]
     loss_v = loss_vc = torch.tensor(0.0)
     for perm in perms:
+        # one gather per pass; the minibatches are slices of it
+        all_obs, all_ret_r, all_ret_c = (x[perm] for x in targets)
         for start in range(0, n, minibatch):
             if stop is not None and stop():
                 return None
-            idx = perm[start : start + minibatch]
-            obs = targets.obs[idx]
-            loss_v = ((critic_r(obs) - targets.ret_r[idx]) ** 2).mean()
-            loss_vc = ((critic_c(obs) - targets.ret_c[idx]) ** 2).mean()
+            idx = slice(start, start + minibatch)
+            obs = all_obs[idx]
+            loss_v = ((critic_r(obs) - all_ret_r[idx]) ** 2).mean()
+            loss_vc = ((critic_c(obs) - all_ret_c[idx]) ** 2).mean()
             weight_norm = sum((p**2).sum() for p in weights)
             optimizer.zero_grad()
             (loss_v + loss_vc + l2 * weight_norm).backward()
