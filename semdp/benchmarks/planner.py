@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from semdp.benchmarks.arguments import as_int, as_list, parse_args
 from semdp.paths import REPO_ROOT
 from solvers.planner import (
     SafeTrajectoryPlanner,
@@ -43,18 +44,12 @@ VARIANTS: dict[str, dict[str, object]] = {
 }
 
 
-def _parse(argv: list[str]) -> dict[str, str]:
-    args: dict[str, str] = {}
-    for item in argv:
-        if "=" not in item:
-            raise SystemExit(f"expected key=value arguments, got {item!r}")
-        key, value = item.split("=", 1)
-        args[key.strip()] = value.strip()
-    valid = {"backends", "n", "seed", "batch", "out", "max_count", "workers"}
-    unknown = set(args) - valid
-    if unknown:
-        raise SystemExit(f"unknown arguments {sorted(unknown)}; valid: {', '.join(sorted(valid))}")
-    return args
+#: Keys and defaults (``workers`` empty: ``plan_batch``'s own; ``out`` empty:
+#: ``outputs/benchmarks/planner``).
+DEFAULTS: dict[str, str] = {
+    "backends": "[ipopt,lm,lm_adaptive,scp]", "n": "500", "seed": "0", "batch": "16",
+    "out": "", "max_count": "8", "workers": "",
+}
 
 
 def _variant_kwargs(name: str) -> dict[str, object]:
@@ -67,15 +62,13 @@ def _variant_kwargs(name: str) -> dict[str, object]:
 
 def main(argv: list[str]) -> None:
     """Run the suite and print the table."""
-    args = _parse(argv)
-    listed = args.get("backends", "[ipopt,lm,lm_adaptive,scp]").strip("[]")
-    names = [s.strip() for s in listed.split(",")]
-    n = int(args.get("n", 500))
-    seed = int(args.get("seed", 0))
-    sizes = [int(b) for b in args.get("batch", "16").strip("[]").split(",") if b.strip()]
-    workers = int(args["workers"]) if "workers" in args else None
-    out = Path(args.get("out", REPO_ROOT / "outputs" / "benchmarks" / "planner"))
-    problems = random_problems(n, seed, max_count=int(args.get("max_count", 8)))
+    args = parse_args("planner", argv, DEFAULTS)
+    names = as_list(args["backends"])
+    n, seed = as_int(args, "n", minimum=1), as_int(args, "seed")
+    sizes = [as_int({"batch": b}, "batch", minimum=1) for b in as_list(args["batch"])]
+    workers = as_int(args, "workers", minimum=1) if args["workers"] else None
+    out = Path(args["out"]) if args["out"] else REPO_ROOT / "outputs" / "benchmarks" / "planner"
+    problems = random_problems(n, seed, max_count=as_int(args, "max_count", minimum=0))
     rows: list[dict[str, object]] = []
     summary: list[dict[str, object]] = []
     objectives: dict[str, np.ndarray] = {}
