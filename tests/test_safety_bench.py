@@ -41,5 +41,5 @@ def test_small_slice_has_no_cost_and_writes_the_table(tmp_path: Path,
 def test_bad_arguments_exit_with_one_line() -> None:
     with pytest.raises(SystemExit, match="robots must be a comma list"):
         main(["robots=hovercraft"])
-    with pytest.raises(SystemExit, match="unknown argument 'speed'"):
+    with pytest.raises(SystemExit, match="unknown argument 'speed=3'; valid: robots="):
         main(["speed=3"])

@@ -36,6 +36,7 @@ import numpy as np
 from hydra.utils import instantiate
 from omegaconf import OmegaConf
 
+from semdp.benchmarks.arguments import as_int, parse_args
 from semdp.configs import compose_config
 from semdp.embedded.safety_eval import evaluate_safety
 from semdp.embedded.tracking import world_to_ego
@@ -106,22 +107,22 @@ def run_cell(cell: Cell) -> dict[str, Any]:
             "violations": stats["violations"][:5]}
 
 
+#: The suite's keys and defaults (``out`` empty: a time-stamped folder in outputs/bench).
+DEFAULTS: dict[str, str] = {
+    "robots": ",".join(ROBOTS), "tasks": ",".join(TASKS), "policies": ",".join(POLICIES),
+    "configs": ",".join(CONFIGS), "episodes": "20", "seed": "7000", "workers": "2", "out": "",
+}
+
+
 def _parse(argv: list[str]) -> tuple[dict[str, str], list[str]]:
-    """``key=value`` arguments of this suite, and Hydra overrides (anything with ``@``/``.``)."""
-    known = {"robots", "tasks", "policies", "configs", "episodes", "seed", "workers", "out"}
-    args, overrides = {}, []
+    """``key=value`` arguments of this suite (:mod:`semdp.benchmarks.arguments`), and Hydra
+    overrides of the train config (keys with ``.`` or ``@``, or starting with ``+``)."""
+    own, overrides = [], []
     for item in argv:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"arguments are key=value, got {item!r}")
-        if key in known:
-            args[key] = value
-        elif "." in key or "@" in key or key.startswith("+"):
-            overrides.append(item)
-        else:
-            raise ValueError(f"unknown argument {key!r}; valid: {sorted(known)} or Hydra "
-                             "overrides of the train config (e.g. env.planner.clearance=0.6)")
-    return args, overrides
+        key, sep, _ = item.partition("=")
+        hydra = sep and key not in DEFAULTS and ("." in key or "@" in key or key.startswith("+"))
+        (overrides if hydra else own).append(item)
+    return parse_args("safety", own, DEFAULTS), overrides
 
 
 def _choice(value: str, valid: tuple[str, ...], what: str) -> tuple[str, ...]:
@@ -184,17 +185,15 @@ def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         args, overrides = _parse(argv)
-        robots = _choice(args.get("robots", ",".join(ROBOTS)), ROBOTS, "robots")
-        tasks = _choice(args.get("tasks", ",".join(TASKS)), TASKS, "tasks")
-        policies = _choice(args.get("policies", ",".join(POLICIES)), POLICIES, "policies")
-        configs = _choice(args.get("configs", ",".join(CONFIGS)), CONFIGS, "configs")
-        episodes, seed = int(args.get("episodes", 20)), int(args.get("seed", 7000))
-        workers = int(args.get("workers", 2))
-        if episodes < 1 or workers < 1:
-            raise ValueError("episodes and workers must be >= 1")
+        robots = _choice(args["robots"], ROBOTS, "robots")
+        tasks = _choice(args["tasks"], TASKS, "tasks")
+        policies = _choice(args["policies"], POLICIES, "policies")
+        configs = _choice(args["configs"], CONFIGS, "configs")
+        episodes, seed = as_int(args, "episodes", minimum=1), as_int(args, "seed")
+        workers = as_int(args, "workers", minimum=1)
     except ValueError as exc:
         sys.exit(f"semdp-bench safety: {exc}")
-    out = Path(args.get("out", f"outputs/bench/safety_{time.strftime('%Y-%m-%d_%H-%M-%S')}"))
+    out = Path(args["out"] or f"outputs/bench/safety_{time.strftime('%Y-%m-%d_%H-%M-%S')}")
     cells = [Cell(r, t, p, c, episodes, seed, tuple(overrides))
              for r in robots for t in tasks for p in policies for c in configs]
     tic = time.perf_counter()
