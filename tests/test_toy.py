@@ -21,8 +21,9 @@ from solvers.threshold_schedule import (
 )
 
 PI = math.pi
-# A few starts per interval of Fig. 2.1's discussion (§2.5.1): the wrong component [-5pi/2, -3pi/2], the component right
-# of 3pi/2 ([3pi/2 + 0.1, 5pi/2]) and the optimum's own component [-pi/2, pi/2].
+# A few starts per interval of Fig. 2.1's discussion (§2.5.1): the wrong component
+# [-5pi/2, -3pi/2], the component right of 3pi/2 ([3pi/2 + 0.1, 5pi/2]) and the optimum's own
+# component [-pi/2, pi/2].
 WRONG_COMPONENT_STARTS = (-7.6, -6.2, -5.0)
 OTHER_STARTS = (3 * PI / 2 + 0.1, 7.3, -PI / 2 + 0.05, 0.9)
 ALL_STARTS = WRONG_COMPONENT_STARTS + OTHER_STARTS

@@ -205,7 +205,7 @@ class Algorithm(ABC):
         self.envs.close()
         self.envs = envs
 
-    def close_helpers(self) -> None:
+    def close_helpers(self) -> None:  # noqa: B027  (a hook: no helpers at this level)
         """Stop helper processes; :meth:`learn` calls it when it returns (none here)."""
 
     def state_dict(self) -> dict[str, Any]:

@@ -231,7 +231,6 @@ class OnPolicyAlgorithm(Algorithm):
                 actions = dist.sample()
                 log_probs = dist.log_prob(actions).sum(-1)
                 stepper.step_async(self.to_env_action(actions))
-                t1 = perf()
                 v_r, v_c = self.critic_r(obs_t), self.critic_c(obs_t)
             t2 = perf()
             buf.store_policy_step(t, obs_t.numpy(), actions.numpy(), log_probs.numpy(),
