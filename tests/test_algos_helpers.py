@@ -209,3 +209,32 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     assert used[:2] == [(False, False), (True, True)]  # each way measured once, then the faster
     probing.close_helpers()
     assert not mp.active_children()
+
+
+def test_vector_env_subclasses_keep_their_own_step() -> None:
+    """A SyncVectorEnv subclass (e.g. the SEMDP lockstep env) is stepped through its ``step``."""
+    import functools
+
+    import gymnasium as gym
+
+    from semdp.common.vector_stepping import MergedInfoStepper, stepper_for
+    from semdp.envs import make_env
+
+    class Counting(gym.vector.SyncVectorEnv):
+        calls = 0
+
+        def step(self, actions):
+            Counting.calls += 1
+            return super().step(actions)
+
+    factory = functools.partial(make_env, "semdp/SpeedLimit-v0")
+    envs = Counting([factory] * 2, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
+    envs.reset(seed=0)
+    stepper = stepper_for(envs)
+    assert isinstance(stepper, MergedInfoStepper)
+    stepper.step(_actions(np.random.default_rng(0), envs))
+    assert Counting.calls == 1
+    from semdp.algos.ppo import PPO
+
+    with pytest.raises(ValueError, match="SyncVectorEnv, got Counting"):
+        PPO(envs, None, seed=0, steps_per_epoch=64, vectorization="async")

@@ -67,8 +67,9 @@ def _cpus() -> int:
 
 
 def _plain_sub_envs(envs: gym.vector.VectorEnv) -> bool:
-    """Every sub-env's wrappers are gymnasium's or the cost checks of :mod:`semdp.envs`."""
-    if not isinstance(envs, gym.vector.SyncVectorEnv):
+    """A plain ``SyncVectorEnv`` (not a subclass with a ``step`` of its own) whose sub-envs'
+    wrappers are all gymnasium's or the cost checks of :mod:`semdp.envs`."""
+    if type(envs) is not gym.vector.SyncVectorEnv:
         return False
     for env in envs.envs:
         while isinstance(env, gym.Wrapper):
@@ -165,6 +166,9 @@ class OnPolicyAlgorithm(Algorithm):
         if "async" in (vectorization, parallel_critics) or parallel_critics is True:
             if not fork_available():
                 raise ValueError("helper processes need the 'fork' start method")
+        if vectorization == "async" and type(envs) is not gym.vector.SyncVectorEnv:
+            raise ValueError(f"vectorization='async' steps the sub-envs of a gymnasium "
+                             f"SyncVectorEnv, got {type(envs).__name__}")
         self.vectorization, self.parallel_critics = vectorization, parallel_critics
         #: Whether the envs step with a helper (per rollout) and the critics regress in one
         #: (per update): fixed by ``"sync"``/``"async"``/``True``/``False``, probed by ``auto``.

@@ -199,8 +199,10 @@ class MergedInfoStepper:
 
 
 def stepper_for(envs: gym.vector.VectorEnv) -> VectorStepper | MergedInfoStepper:
-    """:class:`VectorStepper` for a SAME_STEP ``SyncVectorEnv``, else :class:`MergedInfoStepper`."""
-    if (isinstance(envs, gym.vector.SyncVectorEnv)
+    """:class:`VectorStepper` for a SAME_STEP ``SyncVectorEnv``, else :class:`MergedInfoStepper`
+    (also for subclasses of ``SyncVectorEnv``: their own ``step`` may do more, e.g. the SEMDP
+    lockstep env's batched follower)."""
+    if (type(envs) is gym.vector.SyncVectorEnv
             and envs.autoreset_mode == gym.vector.AutoresetMode.SAME_STEP):
         return VectorStepper(envs)
     return MergedInfoStepper(envs)
