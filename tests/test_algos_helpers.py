@@ -1,7 +1,7 @@
-"""The on-policy speed-ups change no number: fast stepping equals gymnasium's SyncVectorEnv, the
-env helper process equals stepping in the trainer, critics regressed in the helper equal the
-trainer's, whatever the mode a seeded run writes the same ``progress.csv``, resumes are exact,
-and every helper process is gone when ``learn`` returns."""
+"""The on-policy speed-ups change no number: fast stepping equals gymnasium's SyncVectorEnv, a
+rollout split with the helper process equals one process's, critics regressed in the helper
+equal the trainer's, whatever the mode a seeded run writes the same ``progress.csv``, resumes
+are exact, and every helper process is gone when ``learn`` returns."""
 
 from __future__ import annotations
 
@@ -16,7 +16,6 @@ import pytest
 import torch
 from omegaconf import DictConfig, open_dict
 
-from semdp.common.async_stepper import AsyncStepper
 from semdp.common.critic_regression import CriticTargets, regress_critics
 from semdp.common.critic_worker import CriticWorker
 from semdp.common.forked_worker import fork_available
@@ -75,43 +74,50 @@ def test_success_flags_follow_gymnasiums_merged_final_info() -> None:
     assert success_flags({1: {"is_success": 0.0}}) == {1: 0.0}
 
 
-@pytest.mark.parametrize("local", [0, 1])
-def test_async_stepper_continues_exactly_and_returns_its_envs(local: int) -> None:
+@pytest.mark.parametrize("local", [1, 2])
+def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> None:
+    from semdp.algos.ppo import PPO
+    from semdp.algos.rollout import RolloutPart, noise_for, roll_part
+    from semdp.algos.rollout_helper import RolloutHelper
+
     cfg = {"id": "sims/SafetyCarGoal2-v0", "num_envs": 3, "kwargs": {"max_episode_steps": 25}}
-    here, there = make_vec_env(cfg, seed=0), make_vec_env(cfg, seed=0)
+    torch.manual_seed(0)
+    algo = PPO(make_vec_env(cfg, seed=0), None, seed=1, steps_per_epoch=120,
+               vectorization="sync", parallel_critics=False)
+    here = make_vec_env(cfg, seed=0)
     here.reset(seed=1)
-    there.reset(seed=1)
-    local_stepper, remote = VectorStepper(here), AsyncStepper(there, local=local)
-    rng = np.random.default_rng(3)
+    obs = algo._obs.copy()
+    helper = RolloutHelper(algo.envs, range(local, 3), algo.actor, algo.normalizer,
+                           algo.to_env_action)
     try:
-        for _ in range(60):
-            actions = _actions(rng, here)
-            a, b = local_stepper.step(actions), remote.step(actions)
-            np.testing.assert_array_equal(a.obs, b.obs)
-            np.testing.assert_array_equal(a.rewards, b.rewards)
-            np.testing.assert_array_equal(a.costs, b.costs)
-            np.testing.assert_array_equal(a.final_observations(), b.final_observations())
-            assert a.final_infos == b.final_infos
-        gathered = remote.gather()  # the checkpoint's round trip, in the helper ...
-        assert gathered is there
-        pickle.dumps(here)  # ... and the same round trip here
-        pickle.dumps(there)  # (idempotent on the gathered, restored sub-envs)
-        for _ in range(30):
-            actions = _actions(rng, here)
-            np.testing.assert_array_equal(remote.step(actions).obs,
-                                          local_stepper.step(actions).obs)
-        assert remote.busy_seconds > 0
-        # a checkpoint's snapshot: the helper's sub-envs pickled there, the trainer's here
-        restored = pickle.loads(pickle.dumps(remote.snapshot()))
-        pickle.dumps(here)
-        actions = _actions(rng, here)
-        expected = local_stepper.step(actions).obs
+        for _ in range(2):
+            noise = noise_for(40, 3, algo.act_dim)
+            whole = roll_part(algo.actor, algo.normalizer, algo.to_env_action,
+                              VectorStepper(here), range(3), 3, noise, obs)
+            helper.start(algo.actor, algo.normalizer, noise[:, local:], obs[local:])
+            mine = roll_part(algo.actor, algo.normalizer, algo.to_env_action,
+                             VectorStepper(algo.envs, range(local)), range(local), 3,
+                             noise[:, :local], obs[:local])
+            split = RolloutPart.concatenate(mine, helper.result())
+            for name in ("raw_obs", "obs", "actions", "log_probs", "rewards", "costs",
+                         "terminated", "truncated", "last_obs"):
+                np.testing.assert_array_equal(getattr(split, name), getattr(whole, name))
+            assert split.final_obs.keys() == whole.final_obs.keys() and whole.final_obs
+            obs = whole.last_obs
+            with torch.no_grad():  # the next epoch's policy differs
+                algo.actor.log_std.add_(0.1)
+        restored = pickle.loads(pickle.dumps(helper.snapshot()))  # a checkpoint's round trip
+        pickle.dumps(here)  # ... and the same one here
+        actions = _actions(np.random.default_rng(3), here)
+        expected = VectorStepper(here).step(actions).obs
         np.testing.assert_array_equal(VectorStepper(restored).step(actions).obs, expected)
-        np.testing.assert_array_equal(remote.step(actions).obs, expected)
+        gathered = helper.gather()
+        assert gathered is algo.envs
+        np.testing.assert_array_equal(VectorStepper(gathered).step(actions).obs, expected)
     finally:
-        remote.close()
+        helper.close()
     with pytest.raises(RuntimeError):
-        remote.step(actions)
+        helper.start(algo.actor, algo.normalizer, noise[:, local:], obs[local:])
 
 
 def test_critic_worker_regresses_bit_identically_and_can_be_cancelled() -> None:

@@ -155,7 +155,7 @@ class Algorithm(ABC):
             raise RuntimeError("no eval_envs were given to this algorithm")
         envs = self.eval_envs
         obs, _ = envs.reset(seed=self.seed + EVAL_SEED_OFFSET if seed is None else seed)
-        stepper = self.evaluation_stepper(envs)
+        stepper = stepper_for(envs)
         n = envs.num_envs
         # A fixed quota of episodes per sub-env, so short episodes are not over-represented.
         quota = np.array([episodes // n + (i < episodes % n) for i in range(n)])
@@ -187,14 +187,6 @@ class Algorithm(ABC):
             "cost_std": float(csts.std()),
             "success_rate": float(np.mean(succ)) if succ else None,
         }
-
-    def evaluation_stepper(self, envs: gym.vector.VectorEnv) -> Any:
-        """What steps ``envs`` during :meth:`evaluate` (closed afterwards): in this process.
-
-        Every evaluation resets ``envs`` with its seed first, so how they were stepped before
-        does not matter.
-        """
-        return stepper_for(envs)
 
     def env_snapshot(self) -> Any:
         """The training vector env as a checkpoint stores it (pickled with the checkpoint)."""

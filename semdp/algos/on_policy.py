@@ -4,9 +4,9 @@ families; semdp/README.md, "Algorithms and recorded choices").
 Two optional helper processes use a second core without changing a single number (same seed,
 same ``progress.csv``; semdp/README.md, "Throughput"):
 
-* ``vectorization="async"``: most training envs step in a forked helper
-  (:class:`~semdp.common.async_stepper.AsyncStepper`) while the trainer steps the others and
-  evaluates its critics;
+* ``vectorization="async"``: a forked helper rolls out 3/5 of the training sub-envs for the
+  whole epoch (:class:`~semdp.algos.rollout_helper.RolloutHelper`) while the trainer rolls out
+  the others; the critics value the merged rollout afterwards (:mod:`semdp.algos.rollout`);
 * ``parallel_critics=True``: the critics regress in a forked helper
   (:class:`~semdp.common.critic_worker.CriticWorker`) while the actor updates; the helper gets
   the permutations the trainer's generator would have drawn for them.
@@ -35,7 +35,8 @@ import numpy.typing as npt
 import torch
 
 from semdp.algos.base import Algorithm
-from semdp.common.async_stepper import AsyncStepper
+from semdp.algos.rollout import RolloutPart, noise_for, roll_part
+from semdp.algos.rollout_helper import RolloutHelper
 from semdp.common.buffers import RolloutBatch, RolloutBuffer
 from semdp.common.critic_regression import CriticTargets, regress_critics
 from semdp.common.critic_worker import CriticWorker
@@ -44,7 +45,7 @@ from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
 from semdp.common.optim import FlatAdam
 from semdp.common.option_probe import FasterOption
-from semdp.common.vector_stepping import MergedInfoStepper, VectorStepper, stepper_for
+from semdp.common.vector_stepping import VectorStepper, stepper_for
 
 logger = logging.getLogger(__name__)
 
@@ -52,8 +53,8 @@ VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
 #: ``vectorization="auto"``: seconds per vector step of the envs (first rollout, in this
 #: process) from which they move to the helper.
 ASYNC_MIN_STEP_S = 2e-4
-#: Fraction of the sub-envs the trainer steps itself with ``async`` (it also runs the critics
-#: during the step, so it takes a little less than half).
+#: Fraction of the sub-envs the trainer rolls out itself with ``async`` (it also values the
+#: merged rollout, so it takes a little less than half).
 TRAINER_SHARE: tuple[int, int] = (2, 5)
 #: Modules whose wrappers keep no state the trainer reads (``auto`` may fork the envs).
 _PLAIN_WRAPPER_MODULES: tuple[str, ...] = ("gymnasium.", "semdp.envs")
@@ -177,8 +178,7 @@ class OnPolicyAlgorithm(Algorithm):
         self.envs_in_helper = vectorization == "async"
         self.critics_in_helper = parallel_critics is True
         self._update_start = 0.0
-        self._stepper: VectorStepper | MergedInfoStepper | AsyncStepper | None = None
-        self._stepper_busy_seen = 0.0
+        self._rollout_helper: RolloutHelper | None = None
         self._critic_worker: CriticWorker | None = None
 
     # ----------------------------------------------------------------- acting
@@ -192,94 +192,101 @@ class OnPolicyAlgorithm(Algorithm):
             a = self.actor.mean_net(x) if deterministic else self.actor.distribution(x).sample()
         return self.to_env_action(a.numpy())
 
-    def _training_stepper(self) -> VectorStepper | MergedInfoStepper | AsyncStepper:
-        """The stepper of this rollout (with or without the helper, as chosen for it)."""
+    def _helper_for_rollout(self) -> RolloutHelper | None:
+        """The rollout helper of this epoch (``None`` when the trainer rolls out every env)."""
         if self.vectorization == "auto":
             self.envs_in_helper = self._env_choice.choose()
-        if isinstance(self._stepper, AsyncStepper) != self.envs_in_helper:
-            self._stop_stepper(fetch=True)
-        if self._stepper is None:
-            if self.envs_in_helper:
-                # the trainer steps a share of the envs too: it waits for the helper otherwise
-                local = (self.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1]
-                self._stepper = AsyncStepper(self.envs, local=local)
-                self._stepper_busy_seen = 0.0
-            else:
-                self._stepper = stepper_for(self.envs)
-        return self._stepper
+        local = max(1, (self.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1])
+        if not self.envs_in_helper or local >= self.num_envs:
+            self._stop_rollout_helper(fetch=True)
+            return None
+        if self._rollout_helper is None:
+            self._rollout_helper = RolloutHelper(
+                self.envs, range(local, self.num_envs), self.actor, self.normalizer,
+                self.to_env_action)
+        return self._rollout_helper
 
     def collect_rollout(self) -> dict[str, float]:
         """Fill the rollout buffer with ``n_steps`` vector steps; return episode statistics.
 
-        Per step: the actor acts, the env step starts, the critics value the observation and
-        the policy side of the row is stored (meanwhile the helper steps, when there is one),
-        then the step's result completes the row. Time-outs are bootstrapped with V(true final
-        observation).
+        The sampling noise of the epoch is drawn first; the sub-envs are rolled out (the last
+        ones by the helper, if it is used: :mod:`semdp.algos.rollout`), then the critics value
+        every step and time-outs are bootstrapped with V(true final observation), step by step
+        as the rollout went.
         """
         perf = time.perf_counter
         seconds = self.timer.seconds
-        buf = self.buffer
-        buf.reset()
         rollout_start = perf()
-        stepper = self._training_stepper()
-        simulation_before = seconds["simulation"]
-        raw_obs = np.zeros((self.n_steps, self.num_envs, self.obs_dim))
+        helper = self._helper_for_rollout()
+        noise = noise_for(self.n_steps, self.num_envs, self.act_dim)
+        local = helper.rows.start if helper is not None else self.num_envs
+        if helper is not None:
+            helper.start(self.actor, self.normalizer, noise[:, local:], self._obs[local:])
+            stepper = VectorStepper(self.envs, range(local))
+        else:
+            stepper = stepper_for(self.envs)
+        part = roll_part(self.actor, self.normalizer, self.to_env_action, stepper,
+                         range(local), self.num_envs, noise[:, :local], self._obs[:local])
+        seconds["policy"] += part.policy_s
+        seconds["simulation"] += part.simulation_s
+        if helper is not None:
+            wait = perf()
+            remote = helper.result()
+            seconds["simulation"] += perf() - wait
+            seconds["simulation_worker"] += remote.simulation_s
+            part = RolloutPart.concatenate(part, remote)
+        elif part.simulation_s / self.n_steps < ASYNC_MIN_STEP_S:
+            self._env_choice.disallow()  # cheaper than the pipe to a helper
+        stats = self._value_rollout(part)
+        self._env_choice.record(self.envs_in_helper, perf() - rollout_start)
+        return stats
+
+    def _value_rollout(self, part: RolloutPart) -> dict[str, float]:
+        """Store ``part`` in the buffer, value it with the critics, track the episodes."""
+        perf = time.perf_counter
+        seconds = self.timer.seconds
+        start = perf()
+        buf = self.buffer
+        ended = np.logical_or(part.terminated, part.truncated)
+        buf.obs[...], buf.actions[...], buf.log_probs[...] = part.obs, part.actions, \
+            part.log_probs
+        buf.rewards[...], buf.costs[...] = part.rewards, part.costs
+        buf.terminated[...], buf.episode_end[...] = part.terminated, ended
+        buf.pos = self.n_steps
         boot_r = np.zeros((self.n_steps, self.num_envs))
         boot_c = np.zeros((self.n_steps, self.num_envs))
+        valuing = 0.0
         for t in range(self.n_steps):
             t0 = perf()
-            raw_obs[t] = self._obs
-            obs_t = self._tensor(self._obs)
-            with torch.inference_mode():
-                dist = self.actor.distribution(obs_t)
-                actions = dist.sample()
-                log_probs = dist.log_prob(actions).sum(-1)
-                stepper.step_async(self.to_env_action(actions))
-                v_r, v_c = self.critic_r(obs_t), self.critic_c(obs_t)
-            t2 = perf()
-            buf.store_policy_step(t, obs_t.numpy(), actions.numpy(), log_probs.numpy(),
-                                  v_r.numpy(), v_c.numpy())
-            t3 = perf()
-            step = stepper.step_wait()
-            t4 = perf()
-            ended = step.ended
-            timed_out = np.logical_and(ended, np.logical_not(step.terminated))
-            if timed_out.any():  # bootstrap time-outs with V(true final observation)
-                with torch.inference_mode():
-                    fo = self._tensor(step.final_observations()[timed_out])
+            with torch.inference_mode():  # the per-step batches the rollout had
+                obs_t = torch.as_tensor(part.obs[t])
+                buf.values_r[t] = self.critic_r(obs_t).numpy()
+                buf.values_c[t] = self.critic_c(obs_t).numpy()
+                timed_out = np.logical_and(ended[t], np.logical_not(part.terminated[t]))
+                if timed_out.any():  # bootstrap time-outs with V(true final observation)
+                    final = np.stack([part.final_obs[t, i] for i in np.flatnonzero(timed_out)])
+                    fo = self._tensor(final)
                     boot_r[t, timed_out] = self.critic_r(fo).numpy()
                     boot_c[t, timed_out] = self.critic_c(fo).numpy()
-            t5 = perf()
-            buf.store_env_step(t, step.rewards, step.costs, step.terminated, ended)
-            self._track(step.rewards, step.costs, ended)
-            self._obs = self._flat_obs(step.obs)
-            t6 = perf()
-            seconds["policy"] += (t2 - t0) + (t5 - t4)
-            seconds["storage"] += (t3 - t2) + (t6 - t5)
-            seconds["simulation"] += t4 - t3
-        start = perf()
+            valuing += perf() - t0
+            self._track(part.rewards[t], part.costs[t], ended[t])
+        assert part.last_obs is not None
+        self._obs = part.last_obs
         with torch.inference_mode():  # bootstrap the cut at the end of the rollout
             last = self._tensor(self._obs)
             last_r, last_c = self.critic_r(last).numpy(), self.critic_c(last).numpy()
         buf.next_values_r[:-1], buf.next_values_r[-1] = buf.values_r[1:], last_r
         buf.next_values_c[:-1], buf.next_values_c[-1] = buf.values_c[1:], last_c
-        ended = buf.episode_end.astype(bool)
-        buf.next_values_r[ended] = boot_r[ended]
-        buf.next_values_c[ended] = boot_c[ended]
-        self.normalizer.update(raw_obs.reshape(-1, self.obs_dim))
+        episode_end = buf.episode_end.astype(bool)
+        buf.next_values_r[episode_end] = boot_r[episode_end]
+        buf.next_values_c[episode_end] = boot_c[episode_end]
+        self.normalizer.update(part.raw_obs.reshape(-1, self.obs_dim))
         self.env_steps += self.steps_per_epoch
         stats = self._pop_episode_stats()
         if stats["episodes"]:
             self.last_ep_cost, self.last_ep_length = stats["ep_cost"], stats["ep_length"]
-        step_s = (seconds["simulation"] - simulation_before) / self.n_steps
-        if not self.envs_in_helper and step_s < ASYNC_MIN_STEP_S:
-            self._env_choice.disallow()  # cheaper than the pipe to a helper
-        self._env_choice.record(self.envs_in_helper, perf() - rollout_start)
-        if isinstance(stepper, AsyncStepper):
-            busy = stepper.busy_seconds
-            seconds["simulation_worker"] += busy - self._stepper_busy_seen
-            self._stepper_busy_seen = busy
-        seconds["storage"] += perf() - start
+        seconds["policy"] += valuing
+        seconds["storage"] += perf() - start - valuing
         return stats
 
     def compute_batch(self) -> RolloutBatch:
@@ -370,48 +377,41 @@ class OnPolicyAlgorithm(Algorithm):
         return stats
 
     # ----------------------------------------------------------------- helpers and state
-    def evaluation_stepper(self, envs: gym.vector.VectorEnv) -> Any:
-        """While the training envs step with a helper, evaluation envs do too (if plain)."""
-        if self.envs_in_helper and _plain_sub_envs(envs) and envs.num_envs > 1:
-            local = (envs.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1]
-            return AsyncStepper(envs, local=local)
-        return super().evaluation_stepper(envs)
-
     def env_snapshot(self) -> Any:
-        """The training env for a checkpoint; with ``async``, the helper's live one.
+        """The training env for a checkpoint; with the rollout helper, its live sub-envs.
 
-        ``None`` (with a warning, once) when the helper cannot pickle it: a resume then
+        ``None`` (with a warning, once) when the helper cannot pickle them: a resume then
         restarts the episodes in progress, as for an unpicklable env in this process.
         """
-        if not isinstance(self._stepper, AsyncStepper):
+        if self._rollout_helper is None:
             return self.envs
         try:
-            return self._stepper.snapshot()
+            return self._rollout_helper.snapshot()
         except RuntimeError as exc:
             if not self._warned_unpicklable:
-                logger.warning("the env helper cannot pickle the envs (%s): checkpoints omit "
-                               "the env state; a resume will not be bit-identical", exc)
+                logger.warning("the rollout helper cannot pickle the envs (%s): checkpoints "
+                               "omit the env state; a resume will not be bit-identical", exc)
                 self._warned_unpicklable = True
             return None
 
-    def _stop_stepper(self, fetch: bool) -> None:
-        stepper, self._stepper = self._stepper, None
-        if isinstance(stepper, AsyncStepper):
+    def _stop_rollout_helper(self, fetch: bool) -> None:
+        helper, self._rollout_helper = self._rollout_helper, None
+        if helper is not None:
             if fetch:
                 try:
-                    stepper.gather()  # the helper's sub-envs back into self.envs
-                except RuntimeError:  # a step was in flight (an error interrupted it)
+                    helper.gather()  # the helper's sub-envs back into self.envs
+                except RuntimeError:  # a rollout was in flight (an error interrupted it)
                     pass
-            stepper.close()
+            helper.close()
 
     def replace_envs(self, envs: gym.vector.VectorEnv) -> None:
-        """Continue with ``envs``; a helper stepping the old ones is stopped."""
-        self._stop_stepper(fetch=False)
+        """Continue with ``envs``; a helper rolling out the old ones is stopped."""
+        self._stop_rollout_helper(fetch=False)
         super().replace_envs(envs)
 
     def close_helpers(self) -> None:
-        """Stop the helpers; the env helper's live envs become :attr:`envs` again."""
-        self._stop_stepper(fetch=True)
+        """Stop the helpers; the rollout helper's live envs become :attr:`envs` again."""
+        self._stop_rollout_helper(fetch=True)
         if self._critic_worker is not None:
             self._critic_worker.close()
             self._critic_worker = None
@@ -430,8 +430,8 @@ class OnPolicyAlgorithm(Algorithm):
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` (a helper stepping the previous envs is stopped)."""
-        self._stop_stepper(fetch=False)
+        """Restore :meth:`state_dict` (a helper rolling out the previous envs is stopped)."""
+        self._stop_rollout_helper(fetch=False)
         super().load_state_dict(state)
         self.actor.load_state_dict(state["actor"])
         self.critic_r.load_state_dict(state["critic_r"])

@@ -52,32 +52,6 @@ class RolloutBuffer:
             getattr(self, name)[self.pos] = value
         self.pos += 1
 
-    def store_policy_step(
-        self,
-        t: int,
-        obs: np.ndarray,
-        actions: np.ndarray,
-        log_probs: np.ndarray,
-        values_r: np.ndarray,
-        values_c: np.ndarray,
-    ) -> None:
-        """Row ``t``'s policy side: what was observed, done and valued before the env step."""
-        self.obs[t], self.actions[t], self.log_probs[t] = obs, actions, log_probs
-        self.values_r[t], self.values_c[t] = values_r, values_c
-
-    def store_env_step(
-        self,
-        t: int,
-        rewards: np.ndarray,
-        costs: np.ndarray,
-        terminated: np.ndarray,
-        episode_end: np.ndarray,
-    ) -> None:
-        """Row ``t``'s env side; the row is complete afterwards."""
-        self.rewards[t], self.costs[t] = rewards, costs
-        self.terminated[t], self.episode_end[t] = terminated, episode_end
-        self.pos = t + 1
-
     def reset(self) -> None:
         """Start a new rollout."""
         self.pos = 0
