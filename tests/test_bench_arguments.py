@@ -49,12 +49,12 @@ def test_unknown_or_malformed_arguments_name_the_suite_and_the_keys(argv: list[s
      (lambda: as_bool({"b": "maybe"}, "b"), "b must be one of"),
      (lambda: as_choices({"r": "point,boat"}, "r", ("point",)), "r must be a list of")],
 )
-def test_bad_values_exit_with_one_line(call, match: str) -> None:  # noqa: ANN001
+def test_bad_values_exit_with_one_line(call, match: str) -> None:
     with pytest.raises(SystemExit, match=match):
         call()
 
 
-def test_bench_train_reports_throughput_and_its_split(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+def test_bench_train_reports_throughput_and_its_split(tmp_path: Path, capsys) -> None:
     out = tmp_path / "train.csv"
     train.main(["env=speed_limit", "algos=ppo_lag", "epochs=1", "steps_per_epoch=400",
                 "vectorization=sync", "parallel_critics=false", f"out={out}"])
