@@ -1,4 +1,4 @@
-"""``semdp-toy``: the self-paced Lagrangian toy problem (thesis §2.5.1, Fig. 2.1; SPEC §2.1).
+"""``semdp-toy``: the self-paced Lagrangian toy problem (thesis §2.5.1, Fig. 2.1).
 
 Runs every method of :class:`solvers.self_paced_lagrangian.SelfPacedLagrangianToy` from ``x0``
 and writes into the Hydra run directory:
@@ -12,7 +12,7 @@ Examples::
     semdp-toy                                   # x0 = -5, about a second
     semdp-toy x0=0.3 solver.threshold_rule=literal
     semdp-toy -m x0=-6,-5,4.9                   # joblib launcher, 2 jobs
-    semdp-toy -m experiment=toy                 # 21 starts over the three intervals of issue 2
+    semdp-toy -m experiment=toy                 # 21 starts over the three intervals of §2.5.1
 """
 
 from __future__ import annotations

@@ -192,7 +192,7 @@ GRID = (
 
 @pytest.mark.slow
 def test_acceptance_grid_of_20_starts(toy: SelfPacedLagrangianToy) -> None:
-    """Issue 2 acceptance: every start of the 20-point grid, both SP variants reach the optimum."""
+    """Every start of the 20-point grid, both SP variants reach the optimum."""
     for x0 in GRID:
         for result in (toy.self_paced(x0), toy.ipopt_homotopy(x0)):
             _assert_global(result.f, result.c)

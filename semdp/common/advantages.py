@@ -1,4 +1,4 @@
-"""Generalised advantage estimation for reward and cost (Schulman et al. 2016; SPEC §4.1).
+"""Generalised advantage estimation for reward and cost (Schulman et al. 2016).
 
 Time-out convention: a time-out (truncation) is bootstrapped with the value of the true final
 observation, a termination is not. Callers pass, for every step, the value of the *next* state

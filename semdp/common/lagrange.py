@@ -1,4 +1,4 @@
-"""Lagrange multipliers for the cost constraint J_c <= d (thesis Eqs. 2.4-2.5, 2.10; SPEC §4.1).
+"""Lagrange multipliers for the cost constraint J_c <= d (thesis Eqs. 2.4-2.5, 2.10).
 
 Two update rules share one interface (``update(mean_episode_cost) -> multiplier``, a settable
 ``cost_limit`` and ``state_dict``):

@@ -1,4 +1,4 @@
-"""Running mean/std observation normalisation (OmniSafe/CleanRL style; SPEC §4.1)."""
+"""Running mean/std observation normalisation (OmniSafe/CleanRL style)."""
 
 from __future__ import annotations
 

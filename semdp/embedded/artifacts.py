@@ -1,4 +1,4 @@
-"""Post-training artefacts of a SEMDP run (issue 7 deliverables 5-6): the time split, training
+"""Post-training artefacts of a SEMDP run (thesis §3.6): the time split, training
 curves and a GIF of an evaluation episode with the plans drawn.
 
 Used as the ``post_train`` hook of the ``semdp_*`` env configs (see :func:`after_training`).
