@@ -21,12 +21,15 @@ def test_measures_both_then_keeps_the_faster() -> None:
     assert used == [False, True, False, False, False]
 
 
-def test_remeasures_the_other_way_when_the_kept_one_slows_down() -> None:
+def test_leaves_the_kept_way_when_it_gets_slower_than_the_other_was() -> None:
     # the helper wins until epoch 4, then the machine gets busy and it takes 3x as long
     helper = [1.0, 1.0, 1.0, 1.0, 3.0, 3.0, 3.0, 3.0, 3.0]
     used = _drive(FasterOption(reprobe_every=100), {False: [2.0], True: helper}, 9)
     assert used[:5] == [False, True, True, True, True]
     assert used[5] is False and all(u is False for u in used[6:])
+    # a load that slows both ways alike changes nothing
+    both = {False: [2.0, 2.0, 4.0, 4.0, 4.0], True: [1.0, 1.0, 2.0, 2.0, 2.0]}
+    assert _drive(FasterOption(reprobe_every=100), both, 5) == [False, True, True, True, True]
 
 
 def test_periodic_reprobe_and_pinned_choice() -> None:

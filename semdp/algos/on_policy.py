@@ -189,7 +189,7 @@ class OnPolicyAlgorithm(Algorithm):
         """Mean (or sampled) action, clipped and scaled to the env bounds."""
         with torch.inference_mode():
             x = self._tensor(obs)
-            a = self.actor.mean_net(x) if deterministic else self.actor.distribution(x).sample()
+            a = self.actor.mean(x) if deterministic else self.actor.distribution(x).sample()
         return self.to_env_action(a.numpy())
 
     def _helper_for_rollout(self) -> RolloutHelper | None:

@@ -129,7 +129,7 @@ def roll_part(
                 batch[local] = normalised
                 padded_noise[local] = noise[t]
                 x, eps = torch.as_tensor(batch), padded_noise
-            mean = actor.mean_net(x)
+            mean = actor.mean(x)
             actions = eps.clone().mul_(std).add_(mean)  # torch.normal(mean, std) on this noise
             log_probs = Normal(mean, std, validate_args=False).log_prob(actions).sum(-1)
             actions, log_probs = actions[local], log_probs[local]

@@ -13,6 +13,7 @@ import math
 from collections.abc import Sequence
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 from torch.distributions import Normal
 
@@ -43,6 +44,20 @@ def mlp(
     return nn.Sequential(*layers)
 
 
+def forward_mlp(net: nn.Sequential, x: torch.Tensor) -> torch.Tensor:
+    """``net(x)`` calling each layer's function directly: the operations of ``Linear`` and
+    ``Tanh``'s ``forward`` (other layers are called as modules), without the per-module call
+    overhead that costs more than these small layers' arithmetic."""
+    for layer in net:
+        if type(layer) is nn.Linear:
+            x = F.linear(x, layer.weight, layer.bias)
+        elif type(layer) is nn.Tanh:
+            x = torch.tanh(x)
+        else:
+            x = layer(x)
+    return x
+
+
 class GaussianActor(nn.Module):
     """Diagonal Gaussian policy with a state-independent learnable ``log_std``."""
 
@@ -65,8 +80,12 @@ class GaussianActor(nn.Module):
         cost more than the forward pass of these small networks; a NaN policy still fails at
         the env's action check.
         """
-        return Normal(self.mean_net(obs), self.log_std.exp().expand(obs.shape[0], -1),
+        return Normal(self.mean(obs), self.log_std.exp().expand(obs.shape[0], -1),
                       validate_args=False)
+
+    def mean(self, obs: torch.Tensor) -> torch.Tensor:
+        """The mean action (the deterministic policy), shape ``(batch, act_dim)``."""
+        return forward_mlp(self.mean_net, obs)
 
     def log_prob(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Summed log-density of ``actions`` (shape ``(batch,)``)."""
@@ -84,7 +103,7 @@ class ValueCritic(nn.Module):
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         """V(obs), shape ``(batch,)``."""
-        return self.net(obs).squeeze(-1)
+        return forward_mlp(self.net, obs).squeeze(-1)
 
 
 class SquashedGaussianActor(nn.Module):
