@@ -125,7 +125,7 @@ class SAC(Algorithm):
         self.round_steps = max(1, math.ceil(sync_every / self.num_envs))
         #: Seconds spent on learning as seen by this process (bench: ``semdp-bench semdp``).
         self.timing: dict[str, float] = {"update_s": 0.0, "learner_wait_s": 0.0,
-                                         "learner_busy_s": 0.0}
+                                         "learner_busy_s": 0.0, "learner_cpu_s": 0.0}
         self._updates = 0
         self._update_credit = 0.0
         self._host: InlineLearner | ProcessLearner | None = None
@@ -296,6 +296,7 @@ class SAC(Algorithm):
         if out is None:
             return
         self.timing["learner_busy_s"] += out["busy_s"]
+        self.timing["learner_cpu_s"] += out["cpu_s"]
         for key in LOG_KEYS:
             logs[key].extend(out[key])
         with torch.no_grad():

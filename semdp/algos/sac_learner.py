@@ -148,8 +148,8 @@ class SACLearner:
 
     def run(self, n_updates: int, size: int) -> dict[str, Any]:
         """``n_updates`` updates on the first ``size`` replay rows; their logs as floats, the
-        temperature after them and the seconds spent."""
-        start = time.perf_counter()
+        temperature after them, the seconds spent and the CPU seconds of this process."""
+        start, cpu = time.perf_counter(), time.process_time()
         logs: dict[str, list[torch.Tensor]] = {key: [] for key in LOG_KEYS}
         for _ in range(n_updates):
             self.update(size, logs)
@@ -157,6 +157,7 @@ class SACLearner:
                                for key, v in logs.items()}
         out["log_alpha"] = float(self.log_alpha.detach())
         out["busy_s"] = time.perf_counter() - start
+        out["cpu_s"] = time.process_time() - cpu
         return out
 
     # ----------------------------------------------------------------- weights and state

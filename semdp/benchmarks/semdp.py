@@ -12,8 +12,10 @@ runs its uniformly random steps (``algo.learning_starts``, untimed), then ``step
 high-level steps of learning in whole epochs, without evaluation. Printed: high-level and env
 steps/s and the wall-time split -- perception, planning, following, simulation (inside the
 SEMDP envs), learning (in the training process: the updates, or the wait for the learner
-process), other (acting, replay, bookkeeping) -- and how busy a learner process was. Results
-are appended to ``outputs/bench/semdp.csv``. Report the machine load with the figures.
+process), other (acting, replay, bookkeeping) -- how busy a learner process was, and the CPU
+milliseconds per high-level step of each process (load-independent: with a core per process,
+the slower one sets the pace). Results are appended to ``outputs/bench/semdp.csv``. Report the
+machine load with the figures.
 """
 
 from __future__ import annotations
@@ -92,6 +94,7 @@ def measure(steps: int, overrides: list[str]) -> dict[str, Any]:
         **{f"{name}_s": value for name, value in split.items()},
         "learner_busy_s": delta("learner_busy_s") if cfg.algo.get("learner") == "process"
         else split["learning"],
+        "learner_cpu_s": delta("learner_cpu_s"),
         "load_1min": os.getloadavg()[0], "overrides": " ".join(overrides),
     }
 
@@ -113,7 +116,13 @@ def main(argv: list[str]) -> None:
         print(f"  {name:<11} {value:>7.2f} {100 * value / wall:>6.1f} {1e3 * value / high:>8.3f}")
     if row["learner"] == "process":
         print(f"  learner process busy {row['learner_busy_s']:.1f} s "
-              f"({100 * row['learner_busy_s'] / wall:.0f} % of the wall time)")
+              f"({100 * row['learner_busy_s'] / wall:.0f} % of the wall time), CPU "
+              f"{row['learner_cpu_s']:.1f} s")
+    # Load-independent: CPU ms per high-level step of each process; on a quiet machine with a
+    # core per process the slower of the two sets the pace.
+    learner_ms = 1e3 * row["learner_cpu_s"] / high
+    print(f"  CPU per high-level step: training process {1e3 * row['cpu_s'] / high:.2f} ms"
+          + (f", learner process {learner_ms:.2f} ms" if row["learner"] == "process" else ""))
     out = Path(args["out"]) if args["out"] else REPO_ROOT / "outputs" / "bench" / "semdp.csv"
     out.parent.mkdir(parents=True, exist_ok=True)
     new = not out.exists()
