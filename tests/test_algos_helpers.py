@@ -87,26 +87,25 @@ def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> 
     here = make_vec_env(cfg, seed=0)
     here.reset(seed=1)
     obs = algo._obs.copy()
-    nets = (algo.actor, algo.critic_r, algo.critic_c)
-    helper = RolloutHelper(algo.envs, range(local, 3), nets, algo.normalizer, algo.to_env_action)
+    helper = RolloutHelper(algo.envs, range(local, 3), algo.actor, algo.normalizer,
+                           algo.to_env_action)
     try:
         for _ in range(2):
             noise = noise_for(40, 3, algo.act_dim)
-            whole = roll_part(algo.actor, nets[1:], algo.normalizer, algo.to_env_action,
+            whole = roll_part(algo.actor, algo.normalizer, algo.to_env_action,
                               VectorStepper(here), range(3), 3, noise, obs)
-            helper.start(nets, algo.normalizer, noise[:, local:], obs[local:])
-            mine = roll_part(algo.actor, nets[1:], algo.normalizer, algo.to_env_action,
+            helper.start(algo.actor, algo.normalizer, noise[:, local:], obs[local:])
+            mine = roll_part(algo.actor, algo.normalizer, algo.to_env_action,
                              VectorStepper(algo.envs, range(local)), range(local), 3,
                              noise[:, :local], obs[:local])
             split = RolloutPart.concatenate(mine, helper.result())
-            for name in ("raw_obs", "obs", "actions", "log_probs", "values_r", "values_c",
-                         "rewards", "costs", "terminated", "truncated", "last_obs"):
+            for name in ("raw_obs", "obs", "actions", "log_probs", "rewards", "costs",
+                         "terminated", "truncated", "last_obs"):
                 np.testing.assert_array_equal(getattr(split, name), getattr(whole, name))
             assert split.final_obs.keys() == whole.final_obs.keys() and whole.final_obs
             obs = whole.last_obs
-            with torch.no_grad():  # the next epoch's policy and critics differ
+            with torch.no_grad():  # the next epoch's policy differs
                 algo.actor.log_std.add_(0.1)
-                next(algo.critic_c.parameters()).mul_(1.1)
         restored = pickle.loads(pickle.dumps(helper.snapshot()))  # a checkpoint's round trip
         pickle.dumps(here)  # ... and the same one here
         actions = _actions(np.random.default_rng(3), here)
@@ -118,7 +117,7 @@ def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> 
     finally:
         helper.close()
     with pytest.raises(RuntimeError):
-        helper.start(nets, algo.normalizer, noise[:, local:], obs[local:])
+        helper.start(algo.actor, algo.normalizer, noise[:, local:], obs[local:])
 
 
 def test_critic_worker_regresses_bit_identically_and_can_be_cancelled() -> None:

@@ -4,9 +4,9 @@ families; semdp/README.md, "Algorithms and recorded choices").
 Two optional helper processes use a second core without changing a single number (same seed,
 same ``progress.csv``; semdp/README.md, "Throughput"):
 
-* ``vectorization="async"``: a forked helper rolls out half of the training sub-envs for the
+* ``vectorization="async"``: a forked helper rolls out 3/5 of the training sub-envs for the
   whole epoch (:class:`~semdp.algos.rollout_helper.RolloutHelper`) while the trainer rolls out
-  the others (:mod:`semdp.algos.rollout`);
+  the others; the critics value the merged rollout afterwards (:mod:`semdp.algos.rollout`);
 * ``parallel_critics=True``: the critics regress in a forked helper
   (:class:`~semdp.common.critic_worker.CriticWorker`) while the actor updates; the helper gets
   the permutations the trainer's generator would have drawn for them.
@@ -53,9 +53,9 @@ VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
 #: ``vectorization="auto"``: seconds per vector step of the envs (first rollout, in this
 #: process) from which they move to the helper.
 ASYNC_MIN_STEP_S = 2e-4
-#: Fraction of the sub-envs the trainer rolls out itself with ``async`` (half: the helper's
-#: pickling of its part costs about what the trainer's merging does).
-TRAINER_SHARE: tuple[int, int] = (1, 2)
+#: Fraction of the sub-envs the trainer rolls out itself with ``async`` (it also values the
+#: merged rollout, so it takes a little less than half).
+TRAINER_SHARE: tuple[int, int] = (2, 5)
 #: Modules whose wrappers keep no state the trainer reads (``auto`` may fork the envs).
 _PLAIN_WRAPPER_MODULES: tuple[str, ...] = ("gymnasium.", "semdp.envs")
 
@@ -192,9 +192,6 @@ class OnPolicyAlgorithm(Algorithm):
             a = self.actor.mean(x) if deterministic else self.actor.distribution(x).sample()
         return self.to_env_action(a.numpy())
 
-    def _nets(self) -> tuple[GaussianActor, ValueCritic, ValueCritic]:
-        return self.actor, self.critic_r, self.critic_c
-
     def _helper_for_rollout(self) -> RolloutHelper | None:
         """The rollout helper of this epoch (``None`` when the trainer rolls out every env)."""
         if self.vectorization == "auto":
@@ -205,17 +202,17 @@ class OnPolicyAlgorithm(Algorithm):
             return None
         if self._rollout_helper is None:
             self._rollout_helper = RolloutHelper(
-                self.envs, range(local, self.num_envs), self._nets(), self.normalizer,
+                self.envs, range(local, self.num_envs), self.actor, self.normalizer,
                 self.to_env_action)
         return self._rollout_helper
 
     def collect_rollout(self) -> dict[str, float]:
         """Fill the rollout buffer with ``n_steps`` vector steps; return episode statistics.
 
-        The sampling noise of the epoch is drawn first; the sub-envs are rolled out and valued
-        (the last ones by the helper, if it is used: :mod:`semdp.algos.rollout`), then
-        time-outs are bootstrapped with V(true final observation), step by step as the rollout
-        went.
+        The sampling noise of the epoch is drawn first; the sub-envs are rolled out (the last
+        ones by the helper, if it is used: :mod:`semdp.algos.rollout`), then the critics value
+        every step and time-outs are bootstrapped with V(true final observation), step by step
+        as the rollout went.
         """
         perf = time.perf_counter
         seconds = self.timer.seconds
@@ -224,13 +221,12 @@ class OnPolicyAlgorithm(Algorithm):
         noise = noise_for(self.n_steps, self.num_envs, self.act_dim)
         local = helper.rows.start if helper is not None else self.num_envs
         if helper is not None:
-            helper.start(self._nets(), self.normalizer, noise[:, local:], self._obs[local:])
+            helper.start(self.actor, self.normalizer, noise[:, local:], self._obs[local:])
             stepper = VectorStepper(self.envs, range(local))
         else:
             stepper = stepper_for(self.envs)
-        part = roll_part(self.actor, (self.critic_r, self.critic_c), self.normalizer,
-                         self.to_env_action, stepper, range(local), self.num_envs,
-                         noise[:, :local], self._obs[:local])
+        part = roll_part(self.actor, self.normalizer, self.to_env_action, stepper,
+                         range(local), self.num_envs, noise[:, :local], self._obs[:local])
         seconds["policy"] += part.policy_s
         seconds["simulation"] += part.simulation_s
         if helper is not None:
@@ -246,7 +242,7 @@ class OnPolicyAlgorithm(Algorithm):
         return stats
 
     def _value_rollout(self, part: RolloutPart) -> dict[str, float]:
-        """Store ``part`` in the buffer, bootstrap time-outs and the cut, track the episodes."""
+        """Store ``part`` in the buffer, value it with the critics, track the episodes."""
         perf = time.perf_counter
         seconds = self.timer.seconds
         start = perf()
@@ -254,23 +250,25 @@ class OnPolicyAlgorithm(Algorithm):
         ended = np.logical_or(part.terminated, part.truncated)
         buf.obs[...], buf.actions[...], buf.log_probs[...] = part.obs, part.actions, \
             part.log_probs
-        buf.values_r[...], buf.values_c[...] = part.values_r, part.values_c
         buf.rewards[...], buf.costs[...] = part.rewards, part.costs
         buf.terminated[...], buf.episode_end[...] = part.terminated, ended
         buf.pos = self.n_steps
         boot_r = np.zeros((self.n_steps, self.num_envs))
         boot_c = np.zeros((self.n_steps, self.num_envs))
         valuing = 0.0
-        timed_out = np.logical_and(ended, np.logical_not(part.terminated))
         for t in range(self.n_steps):
-            if timed_out[t].any():  # bootstrap time-outs with V(true final observation)
-                t0 = perf()
-                rows = np.flatnonzero(timed_out[t])
-                with torch.inference_mode():  # the batch the rollout had at this step
-                    fo = self._tensor(np.stack([part.final_obs[t, i] for i in rows]))
-                    boot_r[t, rows] = self.critic_r(fo).numpy()
-                    boot_c[t, rows] = self.critic_c(fo).numpy()
-                valuing += perf() - t0
+            t0 = perf()
+            with torch.inference_mode():  # the per-step batches the rollout had
+                obs_t = torch.as_tensor(part.obs[t])
+                buf.values_r[t] = self.critic_r(obs_t).numpy()
+                buf.values_c[t] = self.critic_c(obs_t).numpy()
+                timed_out = np.logical_and(ended[t], np.logical_not(part.terminated[t]))
+                if timed_out.any():  # bootstrap time-outs with V(true final observation)
+                    final = np.stack([part.final_obs[t, i] for i in np.flatnonzero(timed_out)])
+                    fo = self._tensor(final)
+                    boot_r[t, timed_out] = self.critic_r(fo).numpy()
+                    boot_c[t, timed_out] = self.critic_c(fo).numpy()
+            valuing += perf() - t0
             self._track(part.rewards[t], part.costs[t], ended[t])
         assert part.last_obs is not None
         self._obs = part.last_obs

@@ -11,9 +11,8 @@ the numbers to stay those of one process acting on all sub-envs:
 * each process evaluates the actor on the full ``n``-row batch with its own rows in their
   places (the others zero): a row of a matrix product depends on that row only, but the kernel
   chosen depends on the batch shape, so the shape and the row positions are kept;
-* the critics value every step the same way (full batch, rows in place); the time-out
-  bootstraps and the episode bookkeeping run afterwards in the trainer on the merged records,
-  in the original per-step batches and order.
+* the critics, the time-out bootstraps and the episode bookkeeping run afterwards in the
+  trainer on the merged records, in the original per-step batches and order.
 """
 
 from __future__ import annotations
@@ -27,7 +26,7 @@ import numpy as np
 import torch
 from torch.distributions import Normal
 
-from semdp.common.networks import GaussianActor, ValueCritic
+from semdp.common.networks import GaussianActor
 from semdp.common.normalization import RunningNormalizer
 
 
@@ -39,7 +38,6 @@ class RolloutPart:
         raw_obs: observations acted on, as the envs returned them (float64).
         obs: the same normalised, as the actor saw them (float32).
         actions, log_probs: the sampled actions in [-1, 1] units and their log-densities.
-        values_r, values_c: the critics' values of ``obs``.
         rewards, costs, terminated, truncated: the step results.
         final_obs: ``(t, i)`` -> the last observation of the episode that ended there.
         last_obs: the observations after the last step (the next rollout starts there).
@@ -50,8 +48,6 @@ class RolloutPart:
     obs: np.ndarray
     actions: np.ndarray
     log_probs: np.ndarray
-    values_r: np.ndarray
-    values_c: np.ndarray
     rewards: np.ndarray
     costs: np.ndarray
     terminated: np.ndarray
@@ -71,8 +67,8 @@ class RolloutPart:
 
         assert first.last_obs is not None and second.last_obs is not None
         return cls(
-            cat("raw_obs"), cat("obs"), cat("actions"), cat("log_probs"), cat("values_r"),
-            cat("values_c"), cat("rewards"), cat("costs"), cat("terminated"), cat("truncated"),
+            cat("raw_obs"), cat("obs"), cat("actions"), cat("log_probs"), cat("rewards"),
+            cat("costs"), cat("terminated"), cat("truncated"),
             {**first.final_obs, **{(t, k + i): o for (t, i), o in second.final_obs.items()}},
             np.concatenate([first.last_obs, second.last_obs]),
             first.simulation_s + second.simulation_s, first.policy_s + second.policy_s,
@@ -87,7 +83,6 @@ def noise_for(n_steps: int, num_envs: int, act_dim: int) -> torch.Tensor:
 
 def roll_part(
     actor: GaussianActor,
-    critics: tuple[ValueCritic, ValueCritic],
     normalizer: RunningNormalizer,
     to_env_action: Callable[[Any], np.ndarray],
     stepper: Any,
@@ -100,7 +95,6 @@ def roll_part(
 
     Args:
         actor, normalizer, to_env_action: the policy of this epoch.
-        critics: the reward and cost critics of this epoch.
         stepper: steps exactly the sub-envs ``rows`` (``step(actions) -> StepResult``).
         rows: positions of these sub-envs in the batch.
         num_envs: the batch size the actor is evaluated on.
@@ -116,12 +110,9 @@ def roll_part(
         obs=np.zeros((n_steps, k, obs_dim), dtype=np.float32),
         actions=np.zeros((n_steps, k, act_dim), dtype=np.float32),
         log_probs=np.zeros((n_steps, k), dtype=np.float32),
-        values_r=np.zeros((n_steps, k), dtype=np.float32),
-        values_c=np.zeros((n_steps, k), dtype=np.float32),
         rewards=np.zeros((n_steps, k)), costs=np.zeros((n_steps, k)),
         terminated=np.zeros((n_steps, k), dtype=bool), truncated=np.zeros((n_steps, k), dtype=bool),
     )
-    critic_r, critic_c = critics
     batch = np.zeros((num_envs, obs_dim), dtype=np.float32)
     padded_noise = torch.zeros(num_envs, act_dim)
     local = slice(rows.start, rows.stop)
@@ -147,15 +138,12 @@ def roll_part(
             t1 = perf()
             step = stepper.step(env_actions)
             t2 = perf()
-            part.values_r[t] = critic_r(x)[local].numpy()
-            part.values_c[t] = critic_c(x)[local].numpy()
-            t3 = perf()
             part.rewards[t], part.costs[t] = step.rewards, step.costs
             part.terminated[t], part.truncated[t] = step.terminated, step.truncated
             for i, final in step.final_obs.items():
                 part.final_obs[t, i] = final
             obs = np.asarray(step.obs, dtype=np.float64).reshape(k, obs_dim)
-            part.policy_s += (t1 - t0) + (t3 - t2)
+            part.policy_s += t1 - t0
             part.simulation_s += t2 - t1
     part.last_obs = obs
     return part

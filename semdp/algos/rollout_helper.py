@@ -2,7 +2,7 @@
 
 ``vectorization="async"`` of the on-policy algorithms (semdp/README.md, "Throughput"): the
 helper holds the sub-envs ``rows`` as they were when it was forked, and each epoch, given this
-epoch's actor, critics, normaliser statistics and sampling noise, runs
+epoch's actor, normaliser statistics and sampling noise, runs
 :func:`~semdp.algos.rollout.roll_part` on them while the trainer runs it on the others; the
 two never wait for each other within the epoch (see :mod:`semdp.algos.rollout` for why the
 numbers are those of one process). Checkpoints take the helper's sub-envs as pickled in the
@@ -23,7 +23,7 @@ import torch
 
 from semdp.algos.rollout import RolloutPart, roll_part
 from semdp.common.forked_worker import ForkedWorker
-from semdp.common.networks import GaussianActor, ValueCritic
+from semdp.common.networks import GaussianActor
 from semdp.common.normalization import RunningNormalizer
 from semdp.common.vector_stepping import VectorStepper
 
@@ -51,25 +51,24 @@ class _Server:
         self,
         envs: gym.vector.SyncVectorEnv,
         rows: range,
-        nets: tuple[GaussianActor, ValueCritic, ValueCritic],
+        actor: GaussianActor,
         normalizer: RunningNormalizer,
         to_env_action: Callable[[Any], np.ndarray],
     ) -> None:
-        self.envs, self.rows, self.nets = envs, rows, nets
-        self.normalizer, self.to_env_action = normalizer, to_env_action
+        self.envs, self.rows = envs, rows
+        self.actor, self.normalizer, self.to_env_action = actor, normalizer, to_env_action
         self.stepper = VectorStepper(envs, rows)
 
     def __call__(self, request: bytes) -> bytes:
         try:
             if request[:1] == _ROLL:
                 job = pickle.loads(request[1:])
-                for net, state in zip(self.nets, job["nets"], strict=True):
-                    net.load_state_dict({k: torch.from_numpy(v) for k, v in state.items()})
+                self.actor.load_state_dict({k: torch.from_numpy(v)
+                                            for k, v in job["actor"].items()})
                 self.normalizer.load_state_dict(job["normalizer"])
-                actor, critic_r, critic_c = self.nets
-                part = roll_part(actor, (critic_r, critic_c), self.normalizer,
-                                 self.to_env_action, self.stepper, self.rows, job["num_envs"],
-                                 torch.from_numpy(job["noise"]), job["obs"])
+                part = roll_part(self.actor, self.normalizer, self.to_env_action, self.stepper,
+                                 self.rows, job["num_envs"], torch.from_numpy(job["noise"]),
+                                 job["obs"])
                 return _OK + pickle.dumps(part, protocol=pickle.HIGHEST_PROTOCOL)
             if request == _STATE:
                 blobs = [pickle.dumps(self.envs.envs[i], protocol=STATE_PROTOCOL)
@@ -88,16 +87,15 @@ class RolloutHelper:
             continues the sub-envs ``rows`` from exactly this state (the trainer's copies of
             them are not stepped any more: :meth:`gather` brings them back).
         rows: the helper's sub-envs, the last ones (``range(local, num_envs)``).
-        nets: the trainer's actor, reward critic and cost critic; normalizer, to_env_action:
-            its policy's input and output maps (the helper loads this epoch's weights and
-            statistics into its forked copies with every request).
+        actor, normalizer, to_env_action: the trainer's policy (the helper loads this epoch's
+            weights and statistics into its forked copies with every request).
     """
 
     def __init__(
         self,
         envs: gym.vector.SyncVectorEnv,
         rows: range,
-        nets: tuple[GaussianActor, ValueCritic, ValueCritic],
+        actor: GaussianActor,
         normalizer: RunningNormalizer,
         to_env_action: Callable[[Any], np.ndarray],
     ) -> None:
@@ -105,7 +103,7 @@ class RolloutHelper:
             raise ValueError(f"rows must be range(local, {envs.num_envs}) with local > 0, "
                              f"got {rows}")
         self.envs, self.rows = envs, rows
-        server = _Server(envs, rows, nets, normalizer, to_env_action)
+        server = _Server(envs, rows, actor, normalizer, to_env_action)
         self._worker = ForkedWorker(server, name="semdp-rollout")
         self._pending = False
         #: Seconds the helper spent stepping its envs so far.
@@ -119,7 +117,7 @@ class RolloutHelper:
 
     def start(
         self,
-        nets: tuple[GaussianActor, ValueCritic, ValueCritic],
+        actor: GaussianActor,
         normalizer: RunningNormalizer,
         noise: torch.Tensor,
         obs: np.ndarray,
@@ -128,8 +126,7 @@ class RolloutHelper:
         if self._pending:
             raise RuntimeError("a rollout is already running in the helper")
         job = {
-            "nets": [{k: v.detach().numpy().copy() for k, v in net.state_dict().items()}
-                     for net in nets],
+            "actor": {k: v.detach().numpy().copy() for k, v in actor.state_dict().items()},
             "normalizer": normalizer.state_dict(), "num_envs": self.envs.num_envs,
             "noise": noise.numpy(), "obs": np.asarray(obs),
         }  # fmt: skip
