@@ -46,31 +46,47 @@ def timing_summary(vec_envs: list[gym.vector.VectorEnv | None]) -> dict[str, flo
     return totals
 
 
-def throughput(algo: Any) -> dict[str, Any]:
+def _epoch_split(progress_csv: Path | None) -> dict[str, float] | None:
+    """The training wall time's split summed over the ``time_*`` columns of ``progress.csv``
+    (:mod:`semdp.embedded.epoch_timing`), or None when the file or the columns are missing."""
+    if progress_csv is None or not Path(progress_csv).is_file():
+        return None
+    with Path(progress_csv).open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    keys = [*TIMING_KEYS, "learning_and_overhead_s"]
+    if not rows or any(f"time_{key}" not in rows[0] for key in keys):
+        return None
+    return {key: sum(float(r[f"time_{key}"] or 0.0) for r in rows) for key in keys}
+
+
+def throughput(algo: Any, progress_csv: Path | None = None) -> dict[str, Any]:
     """High-level and low-level steps/s of training and the wall-time split.
 
-    ``learning_and_overhead_s`` is the training wall time (evaluations included) less the time
-    spent inside the SEMDP envs (perception, planning, following, simulation).
+    The rates are training steps per second of training wall time (``algo.wall_time``, the
+    periodic evaluations included). The split is the sum of ``progress.csv``'s per-epoch
+    ``time_*`` columns when ``progress_csv`` has them; otherwise the time spent inside the
+    training and evaluation SEMDP envs (the final evaluation too, which the training wall time
+    does not include) and ``learning_and_overhead_s``, the rest of the training wall time.
     """
     train = timing_summary([algo.envs])
     evaluation = timing_summary([algo.eval_envs])
     wall = float(algo.wall_time)
-    inside = {key: train[key] + evaluation[key] for key in TIMING_KEYS}
-    split = {**inside, "learning_and_overhead_s": max(wall - sum(inside.values()), 0.0)}
+    split = _epoch_split(progress_csv)
+    if split is None:
+        inside = {key: train[key] + evaluation[key] for key in TIMING_KEYS}
+        split = {**inside, "learning_and_overhead_s": max(wall - sum(inside.values()), 0.0)}
+    plans = train["high_level_steps"] + evaluation["high_level_steps"]
     return {
         "k": int(train["low_level_steps"] / max(train["high_level_steps"], 1)),
         "train_high_level_steps": int(train["high_level_steps"]),
         "train_low_level_steps": int(train["low_level_steps"]),
         "eval_high_level_steps": int(evaluation["high_level_steps"]),
         "wall_time_s": wall,
-        "high_level_steps_per_s": (train["high_level_steps"] + evaluation["high_level_steps"])
-        / max(wall, 1e-9),
-        "env_steps_per_s": (train["low_level_steps"] + evaluation["low_level_steps"])
-        / max(wall, 1e-9),
+        "high_level_steps_per_s": train["high_level_steps"] / max(wall, 1e-9),
+        "env_steps_per_s": train["low_level_steps"] / max(wall, 1e-9),
         "time_split_s": split,
         "time_split_fraction": {key: value / max(wall, 1e-9) for key, value in split.items()},
-        "plan_ms_mean": 1e3 * inside["plan_s"]
-        / max(train["high_level_steps"] + evaluation["high_level_steps"], 1),
+        "plan_ms_mean": 1e3 * (train["plan_s"] + evaluation["plan_s"]) / max(plans, 1),
     }
 
 
@@ -158,7 +174,7 @@ def after_training(
     """``post_train`` hook: add the throughput split to ``metrics`` (key ``"semdp"``), write
     ``curves.png`` and ``eval_episode.gif`` into the run directory, and print a summary."""
     run_dir = Path(run_dir)
-    stats = throughput(algo)
+    stats = throughput(algo, run_dir / "progress.csv")
     metrics = {**metrics, "semdp": stats}
     if curves:
         try:
