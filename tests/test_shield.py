@@ -97,3 +97,32 @@ def test_shield_rejects_bad_arguments() -> None:
         SafetyShield(perception="sonar")
     with pytest.raises(ValueError, match="kinds"):
         SafetyShield(kinds=("lava",))
+
+
+def _covered_miss(bound: bool, distance: float) -> float:
+    """Largest distance, over bearings swept through two LiDAR bins, by which the true hazard
+    centre lies outside every perceived region's bearing allowance (<= 0: always covered)."""
+    env = gym.make("sims/SafetyPointGoal1-v0")
+    shield = SafetyShield(margin=0.05, perception="lidar", lidar_bearing_bound=bound)
+    worst = -np.inf
+    for bearing in np.linspace(0.01, 2 * math.pi / 8 - 0.01, 23):
+        hazard = (distance * math.cos(bearing), distance * math.sin(bearing))
+        layout = {"agent": (0.0, 0.0), "agent_yaw": 0.0, "hazards": [hazard],
+                  "vases": [(-2.0, -2.0)], "goal": (2.0, -2.0)}
+        obs, _ = env.reset(seed=0, options={"layout": layout})
+        shield.bind(env.unwrapped)
+        regions = shield.cost_regions(env.unwrapped, obs)
+        hazard_radius = env.unwrapped.hazard_radius + 0.05
+        allowance = regions[:, 2] - hazard_radius  # what each region adds beyond the margin
+        gaps = np.linalg.norm(regions[:, :2] - hazard, axis=1) - allowance
+        worst = max(worst, float(gaps.min()))
+    return worst
+
+
+@pytest.mark.parametrize("distance", [0.3, 0.6, 1.2])
+def test_lidar_regions_cover_the_true_hazard_at_any_bearing(distance: float) -> None:
+    # a LiDAR bin gives the range exactly, the bearing to half a bin: the bounded regions must
+    # contain the true centre; the bin-centre reconstruction misses it by up to ~0.196 * d
+    assert _covered_miss(True, distance) <= 1e-9
+    miss = _covered_miss(False, distance)
+    assert 0.15 * distance < miss <= 0.2 * distance

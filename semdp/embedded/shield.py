@@ -14,12 +14,21 @@ braking backup).
 Cost regions are discs around the obstacles the planner sees, by kind: hazards cost when the
 root node is inside them; vases, pillars and gremlins when the robot's outline touches them,
 i.e. the root within ``object radius + robot extent``. With ``perception="lidar"`` the
-obstacles are re-read from the LiDAR at every checked step (exact ranges, bin-centre angles);
-``"gt"`` reads the simulator.
+obstacles are re-read from the LiDAR at every checked step. A LiDAR bin gives an object's range
+exactly but its bearing only to within half a bin (11.25°), so a region placed at the bin
+centre can sit up to ``2 d sin(π/32) ≈ 0.196 d`` from the true object at range ``d``: more than
+the margin beyond 0.26 m. With ``lidar_bearing_bound=True`` (the default) every lit bin is a
+candidate object (an aliasing neighbour of a real object only adds a region farther away or at
+the object's own edge of the sector) and its region grows by that bound, so that a trajectory
+clear of the perceived regions is clear of the true ones; ``False`` is the planner's
+reconstruction (peaks only, bin-centre bearings, no bound). ``"gt"`` reads the simulator.
+Objects the sensor cannot see at all (a farther object of the same kind in the same bin) stay
+outside any LiDAR filter.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +37,10 @@ import numpy as np
 
 from semdp.embedded.perception import OBSTACLE_KINDS, perceive_obstacles
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
+from sims.safety_gym.perception import BINS, obstacles_from_lidar
+
+#: Largest distance between an object at range d and its bin-centre reconstruction, per metre.
+BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
 
 #: Cost-region radius of each kind of object at the root node, before the robot's extent.
 _CONTACT_KINDS = ("vases", "pillars", "gremlins")
@@ -50,10 +63,14 @@ class SafetyShield:
         margin: extra clearance beyond each cost region (m).
         perception: ``"lidar"`` (the robot's own sensor, as the planner) or ``"gt"``.
         kinds: obstacle kinds filtered against.
+        lidar_bearing_bound: LiDAR only: every lit bin is a candidate and its region grows by
+            the bin's worst-case bearing error (see the module docstring); ``False``: the
+            planner's peak reconstruction as it is.
     """
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
-                 kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS) -> None:
+                 kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
+                 lidar_bearing_bound: bool = True) -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in ("lidar", "gt"):
@@ -64,6 +81,7 @@ class SafetyShield:
         self.margin = float(margin)
         self.perception = perception
         self.kinds = tuple(kinds)
+        self.lidar_bearing_bound = bool(lidar_bearing_bound)
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
         self._radii: dict[str, float] = {}
@@ -81,8 +99,10 @@ class SafetyShield:
         """Zero the counters."""
         self.stats = ShieldStats()
 
-    def _regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
+    def cost_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """``(m, 3)`` rows ``[x, y, R]``: the cost regions plus the margin."""
+        if self.perception == "lidar" and self.lidar_bearing_bound:
+            return self._bounded_lidar_regions(base, obs)
         rows = []
         for kind in self.kinds:
             if kind not in self._radii:
@@ -92,6 +112,23 @@ class SafetyShield:
                 found = np.array(found, dtype=np.float64)
                 found[:, 2] = self._radii[kind] + self.margin
                 rows.append(found)
+        return np.concatenate(rows) if rows else np.zeros((0, 3))
+
+    def _bounded_lidar_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
+        """Every lit bin of each kind's LiDAR, grown by its bearing error bound."""
+        position = np.asarray(base.robot_position, dtype=np.float64)
+        heading = float(base.robot_heading)
+        rows = []
+        for kind in self.kinds:
+            key = f"{kind}_lidar"
+            if kind not in self._radii or key not in base.obs_slices:
+                continue
+            found = obstacles_from_lidar(obs[base.obs_slices[key]], position, heading,
+                                         peaks_only=False)
+            if len(found):
+                ranges = np.linalg.norm(found - position, axis=1)
+                radius = self._radii[kind] + self.margin + BEARING_ERROR_PER_METRE * ranges
+                rows.append(np.column_stack([found, radius]))
         return np.concatenate(rows) if rows else np.zeros((0, 3))
 
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
@@ -116,7 +153,7 @@ class SafetyShield:
         body = base.body
         state = RobotState(body.position.x, body.position.y, body.velocity.x, body.velocity.y,
                            body.angle, body.angular_velocity)
-        regions = self._regions(base, obs)
+        regions = self.cost_regions(base, obs)
         if not len(regions):
             return action
         distance = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
