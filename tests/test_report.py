@@ -281,7 +281,8 @@ def test_semdp_curves_are_put_on_low_level_env_steps(tmp_path: Path) -> None:
     ("raw", "algo", "env"),
     [("ppo_lag", "PPO-Lag", None), ("sp_ppo_lag", "SP-PPO-Lag", None), ("Ours", "Ours", None),
      ("point_goal1", None, "PointGoal1"), ("car_button2", None, "CarButton2"),
-     ("drive_circle_v4.0", None, "Circle 4 m/s"), ("PointPush1", None, "PointPush1")],
+     ("drive_circle_v4.0", None, "Circle 4 m/s"), ("PointPush1", None, "PointPush1"),
+     ("semdp_mass_push2", None, "MassPush2")],
 )
 def test_report_names_read_as_the_thesis_writes_them(raw: str, algo: str | None,
                                                      env: str | None) -> None:

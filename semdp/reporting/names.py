@@ -13,7 +13,7 @@ ALGORITHMS: dict[str, str] = {
     "ppo": "PPO", "ppo_lag": "PPO-Lag", "sp_ppo_lag": "SP-PPO-Lag", "trpo": "TRPO",
     "trpo_lag": "TRPO-Lag", "cpo": "CPO", "sac": "SAC",
 }
-_SAFETY_GYM = re.compile(r"^(point|car|mass)_(goal|button|push)(\d)$")
+_SAFETY_GYM = re.compile(r"^(?:semdp_)?(point|car|mass)_(goal|button|push)(\d)$")
 _DRIVING = re.compile(r"^drive_(circle|trajectory)(?:_v(\d+(?:\.\d+)?))?$")
 
 
@@ -23,7 +23,8 @@ def algorithm_name(name: str) -> str:
 
 
 def env_name(name: str) -> str:
-    """``point_goal1`` -> ``PointGoal1``, ``drive_circle_v4.0`` -> ``Circle 4 m/s``; any other
+    """``point_goal1`` (and the SEMDP env ``semdp_point_goal1``) -> ``PointGoal1``,
+    ``drive_circle_v4.0`` -> ``Circle 4 m/s``; any other
     name unchanged."""
     match = _SAFETY_GYM.match(name)
     if match:
