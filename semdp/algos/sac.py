@@ -31,7 +31,7 @@ import torch
 from semdp.algos.base import Algorithm
 from semdp.algos.learner_host import InlineLearner, LearnerError, ProcessLearner
 from semdp.algos.replay_shared import SharedReplayBuffer
-from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
+from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner, networks_state
 from semdp.common.buffers import ReplayBuffer
 from semdp.common.networks import SquashedGaussianActor, TwinQCritic
 from semdp.envs import split_step_infos
@@ -246,13 +246,7 @@ class SAC(Algorithm):
                     "update_credit": self._update_credit}
         return {
             **super().state_dict(),
-            "actor": self.actor.state_dict(),
-            "critic": self.critic.state_dict(),
-            "critic_target": self.critic_target.state_dict(),
-            "actor_optimizer": self.actor_optimizer.state_dict(),
-            "critic_optimizer": self.critic_optimizer.state_dict(),
-            "log_alpha": float(self.log_alpha.detach()),
-            "alpha_optimizer": self.alpha_optimizer.state_dict(),
+            **networks_state(self),
             "buffer": self.buffer.state_dict(),
             "updates": (self._updates, self._update_credit),
         }

@@ -49,6 +49,20 @@ class LearnerSettings:
     seed: int
 
 
+def networks_state(owner: Any) -> dict[str, Any]:
+    """The checkpoint entries of SAC's networks, optimisers and temperature (``owner``: a
+    :class:`SACLearner` or the sequential :class:`~semdp.algos.sac.SAC`, same attribute names)."""
+    return {
+        "actor": owner.actor.state_dict(),
+        "critic": owner.critic.state_dict(),
+        "critic_target": owner.critic_target.state_dict(),
+        "actor_optimizer": owner.actor_optimizer.state_dict(),
+        "critic_optimizer": owner.critic_optimizer.state_dict(),
+        "log_alpha": float(owner.log_alpha.detach()),
+        "alpha_optimizer": owner.alpha_optimizer.state_dict(),
+    }
+
+
 def _adam(params: Any, lr: float) -> torch.optim.Adam:
     """Adam with the fused CPU kernel when this torch has it (one kernel for all tensors)."""
     try:
@@ -168,13 +182,7 @@ class SACLearner:
     def state_dict(self) -> dict[str, Any]:
         """Networks, optimisers, temperature, update count and the generator state."""
         return {
-            "actor": self.actor.state_dict(),
-            "critic": self.critic.state_dict(),
-            "critic_target": self.critic_target.state_dict(),
-            "actor_optimizer": self.actor_optimizer.state_dict(),
-            "critic_optimizer": self.critic_optimizer.state_dict(),
-            "log_alpha": float(self.log_alpha.detach()),
-            "alpha_optimizer": self.alpha_optimizer.state_dict(),
+            **networks_state(self),
             "learner_rng": self.generator.get_state(),
             "learner_updates": self.updates,
         }
