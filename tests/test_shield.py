@@ -48,6 +48,18 @@ def test_backup_manoeuvre_brings_the_robot_to_rest(robot: str) -> None:
     assert math.hypot(s.vx, s.vy) < 0.15 * math.hypot(1.2, 0.3)
 
 
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_brake_path_is_the_models_braking_steps_bit_for_bit(robot: str) -> None:
+    model, rng = robot_model(robot), np.random.default_rng(3)
+    for _ in range(20):
+        s = RobotState(*rng.uniform(-2, 2, 2), *rng.uniform(-1.5, 1.5, 2),
+                       rng.uniform(-math.pi, math.pi), rng.uniform(-3, 3))
+        path = model.brake_path(s)
+        for i in range(model.horizon):
+            s = model.step(s, model.backup(s))
+            assert (path[i, 0], path[i, 1]) == (s.x, s.y)
+
+
 def _drive_at_hazard(robot: str, shield: SafetyShield | None) -> tuple[float, float]:
     """Full speed straight at a hazard planted 1.2 m ahead; (cost steps, closest approach)."""
     env = gym.make(f"sims/Safety{robot.capitalize()}Goal1-v0")

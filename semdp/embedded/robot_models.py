@@ -17,7 +17,7 @@ from typing import Protocol
 import numpy as np
 import pymunk
 
-from sims.safety_gym.robots import CarRobot, MassRobot, PointRobot, Robot
+from sims.safety_gym.robots import CarRobot, MassRobot, PointRobot, Robot, interp_clamped
 
 
 @dataclass
@@ -66,6 +66,11 @@ class RobotModel(Protocol):
         """An upper bound of the distance the root covers over the backup manoeuvre (m)."""
         ...
 
+    def brake_path(self, s: RobotState) -> np.ndarray:
+        """Root positions ``(horizon, 2)`` after each env step of the backup manoeuvre from
+        ``s``: the same arithmetic as ``horizon`` calls of ``step(s, backup(s))``, inlined."""
+        ...
+
 
 class PointModel:
     """Point robot: force ``gear * clip(a0)`` along the heading, damping, yaw-rate servo."""
@@ -86,7 +91,7 @@ class PointModel:
         force = self.gear * min(max(float(action[0]), -self.force_limit), self.force_limit)
         gain = force * self.gain_per_force
         a1 = float(action[1])
-        rate = math.copysign(float(np.interp(abs(a1), self.yaw_actions, self.yaw_rates)), a1)
+        rate = math.copysign(interp_clamped(self.yaw_actions, self.yaw_rates, abs(a1)), a1)
         x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
         for _ in range(self.substeps):
             c, sn = math.cos(yaw), math.sin(yaw)
@@ -101,6 +106,27 @@ class PointModel:
     def backup(self, s: RobotState) -> np.ndarray:
         forward = s.vx * math.cos(s.yaw) + s.vy * math.sin(s.yaw)
         return np.array([min(max(-0.2 * forward, -1.0), 1.0), 0.0])
+
+    def brake_path(self, s: RobotState) -> np.ndarray:
+        out = np.empty((self.horizon, 2))
+        h, e = self.h, self.e
+        rate = math.copysign(interp_clamped(self.yaw_actions, self.yaw_rates, 0.0), 0.0)
+        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
+        for i in range(self.horizon):
+            forward = vx * math.cos(yaw) + vy * math.sin(yaw)
+            a0 = min(max(-0.2 * forward, -1.0), 1.0)
+            gain = self.gear * min(max(a0, -self.force_limit), self.force_limit) * \
+                self.gain_per_force
+            for _ in range(self.substeps):
+                c, sn = math.cos(yaw), math.sin(yaw)
+                x += vx * h
+                y += vy * h
+                yaw += w * h
+                vx = gain * c + vx * e
+                vy = gain * sn + vy * e
+                w = rate
+            out[i, 0], out[i, 1] = x, y
+        return out
 
     def stopping_reach(self, s: RobotState) -> float:
         return math.hypot(s.vx, s.vy) * self.tau + 0.05
@@ -141,6 +167,26 @@ class CarModel:
     def stopping_reach(self, s: RobotState) -> float:
         return math.hypot(s.vx, s.vy) * self.lag * 1.5 + 0.05
 
+    def brake_path(self, s: RobotState) -> np.ndarray:
+        out = np.empty((self.horizon, 2))
+        speed, rate = self.steady_state(0.0, 0.0)
+        h, e, lateral_decay = self.h, self.e, self.lateral_decay
+        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
+        for i in range(self.horizon):
+            for _ in range(self.substeps):
+                c, sn = math.cos(yaw), math.sin(yaw)
+                x += vx * h
+                y += vy * h
+                yaw += w * h
+                forward = vx * sn - vy * c
+                lateral = (vx * c + vy * sn) * lateral_decay
+                forward = speed + (forward - speed) * e
+                vx = forward * sn + lateral * c
+                vy = -forward * c + lateral * sn
+                w = w + (rate - w) * (1.0 - e)
+            out[i, 0], out[i, 1] = x, y
+        return out
+
 
 class MassModel:
     """Mass robot: the action is a world-frame velocity command (``max_delta`` per step)."""
@@ -168,6 +214,13 @@ class MassModel:
 
     def stopping_reach(self, s: RobotState) -> float:
         return self.scale * self.h * self.substeps * 2 + 0.05
+
+    def brake_path(self, s: RobotState) -> np.ndarray:
+        out = np.empty((self.horizon, 2))
+        for i in range(self.horizon):
+            s = self.step(s, np.zeros(2))
+            out[i] = (s.x, s.y)
+        return out
 
 
 def robot_model(name: str) -> RobotModel:

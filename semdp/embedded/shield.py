@@ -39,6 +39,8 @@ from semdp.embedded.perception import OBSTACLE_KINDS, perceive_obstacles
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from sims.safety_gym.perception import BINS, obstacles_from_lidar
 
+#: Safety Gym's LiDAR range (m), as the reconstruction assumes.
+LIDAR_RANGE = 3.0
 #: Largest distance between an object at range d and its bin-centre reconstruction, per metre.
 BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
 
@@ -124,12 +126,27 @@ class SafetyShield:
             if kind not in self._radii or key not in base.obs_slices:
                 continue
             found = obstacles_from_lidar(obs[base.obs_slices[key]], position, heading,
-                                         peaks_only=False)
+                                         max_dist=LIDAR_RANGE, peaks_only=False)
             if len(found):
                 ranges = np.linalg.norm(found - position, axis=1)
                 radius = self._radii[kind] + self.margin + BEARING_ERROR_PER_METRE * ranges
                 rows.append(np.column_stack([found, radius]))
         return np.concatenate(rows) if rows else np.zeros((0, 3))
+
+    def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
+        """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
+        each kind (exact ranges; the bearing allowance grows with range, hence the factor)."""
+        bound = np.inf
+        shrink = 1.0 - BEARING_ERROR_PER_METRE if self.lidar_bearing_bound else 1.0
+        for kind in self.kinds:
+            key = f"{kind}_lidar"
+            if kind not in self._radii or key not in base.obs_slices:
+                continue
+            reading = float(obs[base.obs_slices[key]].max())
+            if reading > 0.0:
+                nearest = (1.0 - reading) * LIDAR_RANGE
+                bound = min(bound, shrink * nearest - self._radii[kind] - self.margin)
+        return bound
 
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
                    regions: np.ndarray) -> float:
@@ -137,9 +154,7 @@ class SafetyShield:
         points = np.empty((model.horizon + 1, 2))
         s = model.step(state, first)
         points[0] = (s.x, s.y)
-        for i in range(model.horizon):
-            s = model.step(s, model.backup(s))
-            points[i + 1] = (s.x, s.y)
+        points[1:] = model.brake_path(s)
         gaps = np.linalg.norm(points[:, None, :] - regions[None, :, :2], axis=-1)
         return float((gaps - regions[None, :, 2]).min())
 
@@ -153,11 +168,14 @@ class SafetyShield:
         body = base.body
         state = RobotState(body.position.x, body.position.y, body.velocity.x, body.velocity.y,
                            body.angle, body.angular_velocity)
+        reach = model.stopping_reach(state) + 0.1
+        if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
+            return action  # nothing any lit bin could hold is within reach: no reconstruction
         regions = self.cost_regions(base, obs)
         if not len(regions):
             return action
         distance = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
-        near = distance < model.stopping_reach(state) + 0.1
+        near = distance < reach
         if not near.any():
             return action
         regions = regions[near]

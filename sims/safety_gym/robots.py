@@ -32,7 +32,7 @@ import pymunk
 ROBOT_COLLISION_TYPE = 1
 
 
-def _interp(xs: tuple[float, ...], ys: tuple[float, ...], x: float) -> float:
+def interp_clamped(xs: tuple[float, ...], ys: tuple[float, ...], x: float) -> float:
     """Piecewise-linear interpolation on sorted ``xs`` (clamped at both ends)."""
     if x <= xs[0]:
         return ys[0]
@@ -166,7 +166,7 @@ class PointRobot(Robot):
 
     def set_action(self, a0: float, a1: float) -> None:
         self.force = self.gear * _clip(a0, -self.force_limit, self.force_limit)
-        rate = _interp(self.yaw_actions, self.yaw_rates, abs(a1))
+        rate = interp_clamped(self.yaw_actions, self.yaw_rates, abs(a1))
         self.yaw_rate = rate if a1 >= 0.0 else -rate
 
     def substep(self, body: pymunk.Body) -> tuple[float, float]:
@@ -242,13 +242,13 @@ class CarRobot(Robot):
         if level <= 0.0:
             return 0.0, 0.0
         share = abs(d) / level
-        shape = (1.0 - share) * _interp(
+        shape = (1.0 - share) * interp_clamped(
             cls.radial_levels, cls.straight_speeds, level
-        ) / cls.straight_speeds[-1] + share * _interp(
+        ) / cls.straight_speeds[-1] + share * interp_clamped(
             cls.radial_levels, cls.spin_rates, level
         ) / cls.spin_rates[-1]
-        speed = _interp(cls.edge_shares, cls.edge_speeds, share) * shape
-        rate = _interp(cls.edge_shares, cls.edge_rates, share) * shape
+        speed = interp_clamped(cls.edge_shares, cls.edge_speeds, share) * shape
+        rate = interp_clamped(cls.edge_shares, cls.edge_rates, share) * shape
         if s < 0.0:
             speed *= cls.reverse_factor
         return math.copysign(speed, s), math.copysign(rate, d)
