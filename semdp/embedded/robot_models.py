@@ -85,6 +85,8 @@ class PointModel:
         self.tau = r.mass / r.damping  # time constant of the damped slide joints (s)
         self.extent = body_extent(r)
         self.horizon = 40  # 0.8 s: reverse thrust stops 1.5 m/s in about 0.4 s
+        self._brake_rate = math.copysign(interp_clamped(self.yaw_actions, self.yaw_rates, 0.0),
+                                         0.0)  # the yaw-rate command of the backup's a1 = 0
         self.escapes = np.array([(a0, a1) for a0 in (-1.0, 0.0, 1.0) for a1 in (-1.0, 0.0, 1.0)])
 
     def step(self, s: RobotState, action: np.ndarray) -> RobotState:
@@ -110,7 +112,7 @@ class PointModel:
     def brake_path(self, s: RobotState) -> np.ndarray:
         out = np.empty((self.horizon, 2))
         h, e = self.h, self.e
-        rate = math.copysign(interp_clamped(self.yaw_actions, self.yaw_rates, 0.0), 0.0)
+        rate = self._brake_rate
         x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
         for i in range(self.horizon):
             forward = vx * math.cos(yaw) + vy * math.sin(yaw)
@@ -143,6 +145,7 @@ class CarModel:
         self.lag = -r.h / math.log(r.decay)  # first-order time constant (s)
         self.extent = body_extent(r)
         self.horizon = 30  # 0.6 s: about 4.6 time constants
+        self._brake_steady = self.steady_state(0.0, 0.0)  # the backup's zero torques
         self.escapes = np.array([(a0, a1) for a0 in (-1.0, 0.0, 1.0) for a1 in (-1.0, 0.0, 1.0)])
 
     def step(self, s: RobotState, action: np.ndarray) -> RobotState:
@@ -169,7 +172,7 @@ class CarModel:
 
     def brake_path(self, s: RobotState) -> np.ndarray:
         out = np.empty((self.horizon, 2))
-        speed, rate = self.steady_state(0.0, 0.0)
+        speed, rate = self._brake_steady
         h, e, lateral_decay = self.h, self.e, self.lateral_decay
         x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
         for i in range(self.horizon):

@@ -29,6 +29,7 @@ outside any LiDAR filter.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -116,21 +117,24 @@ class SafetyShield:
                 rows.append(found)
         return np.concatenate(rows) if rows else np.zeros((0, 3))
 
+    def _lidar_channels(self, base: Any, obs: np.ndarray) -> Iterator[tuple[float, np.ndarray]]:
+        """``(cost radius + margin, 16 readings)`` of each filtered kind the robot senses."""
+        for kind in self.kinds:
+            key = f"{kind}_lidar"
+            if kind in self._radii and key in base.obs_slices:
+                yield self._radii[kind] + self.margin, obs[base.obs_slices[key]]
+
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """Every lit bin of each kind's LiDAR, grown by its bearing error bound."""
         position = np.asarray(base.robot_position, dtype=np.float64)
         heading = float(base.robot_heading)
         rows = []
-        for kind in self.kinds:
-            key = f"{kind}_lidar"
-            if kind not in self._radii or key not in base.obs_slices:
-                continue
-            found = obstacles_from_lidar(obs[base.obs_slices[key]], position, heading,
-                                         max_dist=LIDAR_RANGE, peaks_only=False)
+        for radius, readings in self._lidar_channels(base, obs):
+            found = obstacles_from_lidar(readings, position, heading, max_dist=LIDAR_RANGE,
+                                         peaks_only=False)
             if len(found):
                 ranges = np.linalg.norm(found - position, axis=1)
-                radius = self._radii[kind] + self.margin + BEARING_ERROR_PER_METRE * ranges
-                rows.append(np.column_stack([found, radius]))
+                rows.append(np.column_stack([found, radius + BEARING_ERROR_PER_METRE * ranges]))
         return np.concatenate(rows) if rows else np.zeros((0, 3))
 
     def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
@@ -138,14 +142,10 @@ class SafetyShield:
         each kind (exact ranges; the bearing allowance grows with range, hence the factor)."""
         bound = np.inf
         shrink = 1.0 - BEARING_ERROR_PER_METRE if self.lidar_bearing_bound else 1.0
-        for kind in self.kinds:
-            key = f"{kind}_lidar"
-            if kind not in self._radii or key not in base.obs_slices:
-                continue
-            reading = float(obs[base.obs_slices[key]].max())
+        for radius, readings in self._lidar_channels(base, obs):
+            reading = float(readings.max())
             if reading > 0.0:
-                nearest = (1.0 - reading) * LIDAR_RANGE
-                bound = min(bound, shrink * nearest - self._radii[kind] - self.margin)
+                bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius)
         return bound
 
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
