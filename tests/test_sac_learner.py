@@ -175,7 +175,10 @@ def test_ctrl_c_on_semdp_train_ends_training_and_learner(tmp_path: Path) -> None
            "total_steps=200000", "budget.steps_per_epoch=400", "algo.learning_starts=100",
            "algo.batch_size=32", "algo.hidden_sizes=[16,16]", "algo.buffer_size=5000",
            "algo.learner=process", "tensorboard=false", f"hydra.run.dir={tmp_path}"]
-    train = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    # as from a terminal: SIGINT handled, even when pytest itself runs as a background job
+    # (a non-interactive shell starts those with SIGINT ignored, which children inherit)
+    train = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
     def learners() -> list[int]:
         found = []
