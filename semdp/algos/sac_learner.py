@@ -24,6 +24,7 @@ from torch import nn
 
 from semdp.algos.twin_q import FusedTwinQ
 from semdp.common.networks import SquashedGaussianActor
+from semdp.common.optim import LeanAdam
 
 #: Log columns a round of updates reports (``progress.csv`` columns of SAC).
 LOG_KEYS: tuple[str, ...] = ("loss_q", "q_mean", "loss_pi", "entropy")
@@ -63,14 +64,6 @@ def networks_state(owner: Any) -> dict[str, Any]:
     }
 
 
-def _adam(params: Any, lr: float) -> torch.optim.Adam:
-    """Adam with the fused CPU kernel when this torch has it (one kernel for all tensors)."""
-    try:
-        return torch.optim.Adam(params, lr=lr, fused=True)
-    except (RuntimeError, TypeError, ValueError):  # pragma: no cover - older torch builds
-        return torch.optim.Adam(params, lr=lr, foreach=True)
-
-
 class SACLearner:
     """SAC's networks, optimisers and update on a replay storage of torch tensors.
 
@@ -95,10 +88,11 @@ class SACLearner:
             s.obs_dim, s.act_dim, hidden)
         self.critic = FusedTwinQ(s.obs_dim, s.act_dim, hidden)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
-        self.actor_optimizer = _adam(self.actor.parameters(), s.actor_lr)
-        self.critic_optimizer = _adam(self.critic.parameters(), s.critic_lr)
+        # Adam with the fused CPU kernel, called without the optimiser's per-step overhead
+        self.actor_optimizer = LeanAdam(self.actor.parameters(), s.actor_lr)
+        self.critic_optimizer = LeanAdam(self.critic.parameters(), s.critic_lr)
         self.log_alpha = torch.tensor(math.log(s.alpha), requires_grad=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=s.alpha_lr)
+        self.alpha_optimizer = LeanAdam([self.log_alpha], lr=s.alpha_lr)
         self.generator = torch.Generator().manual_seed(int(s.seed))
         self.updates = 0
         self._critic_params = list(self.critic.parameters())
@@ -131,9 +125,10 @@ class SACLearner:
         alpha = self.log_alpha.detach().exp()
         with torch.no_grad():
             next_a, next_logp = self._policy(next_obs)
-            soft_v = self.critic_target(next_obs, next_a).min(0).values - alpha * next_logp
+            q_next = self.critic_target(next_obs, next_a, self._target_params)
+            soft_v = q_next.min(0).values - alpha * next_logp
             target = rewards + s.gamma * (1.0 - terminated) * soft_v
-        q = self.critic(obs, actions)
+        q = self.critic(obs, actions, self._critic_params)
         loss_q = (q - target).square().mean(1).sum()
         self.critic_optimizer.zero_grad(set_to_none=True)
         loss_q.backward()
