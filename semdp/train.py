@@ -127,6 +127,7 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
                 eval_every=int(cfg.eval_every), eval_episodes=int(cfg.eval_episodes),
                 final_eval_episodes=int(cfg.final_eval_episodes),
                 checkpoint_every=int(cfg.checkpoint_every), resume=bool(resume), metadata=meta,
+                eval_workers=int(cfg.get("eval_workers", 1)),
             )
         # Optional post-training hook (e.g. the SEMDP timing split, curves and evaluation GIF):
         # `post_train` (top level or in the env config), a `_partial_` callable

@@ -26,10 +26,10 @@ import torch
 from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
+from semdp.algos.eval_episodes import evaluate_episodes, summarize
 from semdp.common.logger import ProgressCSV, write_metrics
 from semdp.common.phase_timer import PhaseTimer
 from semdp.common.seeding import get_rng_states, set_rng_states
-from semdp.common.vector_stepping import stepper_for
 
 logger = logging.getLogger(__name__)
 
@@ -96,6 +96,8 @@ class Algorithm(ABC):
         self._warned_unpicklable = False
         #: Seconds per phase of the work done so far (``semdp-bench train`` reports them).
         self.timer = PhaseTimer()
+        #: Processes that share the evaluation sub-envs (:meth:`evaluate`; set by ``learn``).
+        self.eval_workers = 1
 
     # ----------------------------------------------------------------- helpers
     def _flat_obs(self, obs: npt.ArrayLike) -> npt.NDArray[np.float64]:
@@ -141,8 +143,17 @@ class Algorithm(ABC):
     def predict(self, obs: npt.ArrayLike, deterministic: bool = True) -> npt.NDArray[Any]:
         """Env-scaled actions for a batch of raw observations."""
 
-    def evaluate(self, episodes: int, seed: int | None = None) -> dict[str, Any]:
-        """Mean-action evaluation on ``eval_envs`` over exactly ``episodes`` episodes.
+    def evaluate(self, episodes: int, seed: int | None = None,
+                 workers: int | None = None) -> dict[str, Any]:
+        """Mean-action evaluation on ``eval_envs`` over exactly ``episodes`` episodes, a fixed
+        quota per sub-env (:mod:`semdp.algos.eval_episodes`).
+
+        Args:
+            episodes: how many.
+            seed: vector reset seed (default: the run seed + ``EVAL_SEED_OFFSET``).
+            workers: processes sharing the sub-envs (default :attr:`eval_workers`): the same
+                layouts, reproducible numbers for a given value (floating-point batch effects
+                make them differ across values).
 
         Returns:
             ``{"episodes", "return_mean", "return_std", "cost_mean", "cost_std",
@@ -153,40 +164,12 @@ class Algorithm(ABC):
             raise ValueError(f"episodes must be >= 1, got {episodes}")
         if self.eval_envs is None:
             raise RuntimeError("no eval_envs were given to this algorithm")
-        envs = self.eval_envs
-        obs, _ = envs.reset(seed=self.seed + EVAL_SEED_OFFSET if seed is None else seed)
-        stepper = stepper_for(envs)
-        n = envs.num_envs
-        # A fixed quota of episodes per sub-env, so short episodes are not over-represented.
-        quota = np.array([episodes // n + (i < episodes % n) for i in range(n)])
-        ret, cost = np.zeros(n), np.zeros(n)
-        results: list[tuple[float, float, float | None]] = []
-        try:
-            while len(results) < episodes:
-                step = stepper.step(self.predict(obs, deterministic=True))
-                obs = step.obs
-                ret += step.rewards
-                cost += step.costs
-                ended = np.flatnonzero(step.ended)
-                successes = step.successes if len(ended) else {}
-                for i in ended:
-                    if quota[i] > 0:
-                        quota[i] -= 1
-                        results.append((float(ret[i]), float(cost[i]), successes[i]))
-                    ret[i] = cost[i] = 0.0
-        finally:
-            stepper.close()
-        rets = np.array([r[0] for r in results])
-        csts = np.array([r[1] for r in results])
-        succ = [r[2] for r in results if r[2] is not None]
-        return {
-            "episodes": len(results),
-            "return_mean": float(rets.mean()),
-            "return_std": float(rets.std()),
-            "cost_mean": float(csts.mean()),
-            "cost_std": float(csts.std()),
-            "success_rate": float(np.mean(succ)) if succ else None,
-        }
+        results = evaluate_episodes(
+            self.eval_envs, lambda obs: self.predict(obs, deterministic=True), episodes,
+            self.seed + EVAL_SEED_OFFSET if seed is None else seed,
+            self.eval_workers if workers is None else workers,
+        )
+        return summarize(results)
 
     def env_snapshot(self) -> Any:
         """The training vector env as a checkpoint stores it (pickled with the checkpoint)."""
@@ -264,6 +247,7 @@ class Algorithm(ABC):
         checkpoint_every: int = 1,
         resume: bool = False,
         metadata: dict[str, Any] | None = None,
+        eval_workers: int = 1,
     ) -> dict[str, Any]:
         """Train for ``total_steps`` env steps, writing the run directory; return metrics.
 
@@ -276,12 +260,17 @@ class Algorithm(ABC):
             checkpoint_every: write ``checkpoints/last.pt`` every this many epochs (and last).
             resume: keep ``progress.csv`` rows up to the loaded epoch and append after them.
             metadata: extra keys for ``metrics.json`` (``algo``, ``env``, ``seed``).
+            eval_workers: processes that share the evaluation sub-envs (forked helpers on the
+                other cores; :meth:`evaluate`).
         """
         if total_steps < 1:
             raise ValueError(f"total_steps must be >= 1, got {total_steps}")
         for name, value in (("eval_every", eval_every), ("checkpoint_every", checkpoint_every)):
             if value < 0:
                 raise ValueError(f"{name} must be >= 0, got {value}")
+        if eval_workers < 1:
+            raise ValueError(f"eval_workers must be >= 1, got {eval_workers}")
+        self.eval_workers = int(eval_workers)
         run_dir = Path(run_dir)
         run_dir.mkdir(parents=True, exist_ok=True)
         self.total_epochs = math.ceil(total_steps / self.steps_per_epoch)

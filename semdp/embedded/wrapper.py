@@ -160,6 +160,19 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         self._obs: np.ndarray | None = None
         self._fresh = True
 
+    def counters(self) -> dict[str, float]:
+        """The lifetime step counts and :attr:`timing` (an evaluation helper process reports
+        its share with these; :mod:`semdp.algos.eval_episodes`)."""
+        return {**self.timing, "high_level_steps": float(self.high_level_steps),
+                "low_level_steps": float(self.low_level_steps)}
+
+    def add_counters(self, delta: dict[str, float]) -> None:
+        """Add counts and timings measured by a copy of this env in another process."""
+        for key in TIMING_KEYS:
+            self.timing[key] += float(delta.get(key, 0.0))
+        self.high_level_steps += int(delta.get("high_level_steps", 0))
+        self.low_level_steps += int(delta.get("low_level_steps", 0))
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Reset the inner env and remember its observation for perception."""
         obs, info = self.env.reset(seed=seed, options=options)
