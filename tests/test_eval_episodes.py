@@ -73,7 +73,7 @@ def test_a_helper_failure_is_reported_with_its_traceback() -> None:
     envs = gym.vector.SyncVectorEnv(
         [lambda: gym.make("Pendulum-v1", max_episode_steps=5) for _ in range(3)],
         autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
-    with pytest.raises(RuntimeError, match="evaluation helper failed(.|\n)*planted failure"):
+    with pytest.raises(RuntimeError, match=r"evaluation helper failed(.|\n)*planted failure"):
         evaluate_episodes(envs, fails_in_helper, 3, seed=0, workers=2)
     assert calls["n"] == 5  # this process ran its two sub-envs' episodes to the end
 
@@ -86,7 +86,7 @@ def test_semdp_counters_of_the_helper_are_added_back(
     with open_dict(cfg):
         cfg.env.vector = "semdp.embedded.vector.LockstepVectorEnv"
     envs = make_vec_env(cfg.env, seed=0)
-    zeros = lambda obs: np.zeros((obs.shape[0], 2), dtype=np.float32)  # noqa: E731
+    zeros = lambda obs: np.zeros((obs.shape[0], 2), dtype=np.float32)
     results = evaluate_episodes(envs, zeros, 4, seed=3, workers=2)
     assert len(results) == 4
     totals = timing_summary([envs])
