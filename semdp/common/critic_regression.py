@@ -77,3 +77,64 @@ def regress_critics(
                 clip_grad_norm(params, max_grad_norm)
             optimizer.step()
     return loss_v.item(), loss_vc.item()
+
+
+#: ``exchange(own per-tensor gradient norms) -> the other half's`` (None: abandon).
+Exchange = Callable[[torch.Tensor], "torch.Tensor | None"]
+
+
+def regress_critic_half(
+    critic: nn.Module,
+    optimizer: torch.optim.Optimizer,
+    obs: torch.Tensor,
+    returns: torch.Tensor,
+    perms: Sequence[torch.Tensor],
+    minibatch: int,
+    l2: float,
+    max_grad_norm: float | None,
+    exchange: Exchange,
+    first: bool,
+) -> float | None:
+    """One critic's half of :func:`regress_critics`, run beside the other half in another
+    process, bit for bit the same.
+
+    The joint loss is a sum over the two critics, so each critic's gradient is its own term's;
+    what couples them is the joint norm clip, whose total is the 2-norm of all per-tensor norms
+    in order (reward critic first): per minibatch each half sends its per-tensor norms through
+    ``exchange`` and receives the other's. Adam is elementwise, so ``optimizer`` (over this
+    critic's parameters, with its slice of the joint state) takes the same steps.
+
+    Args:
+        critic, optimizer: this half's critic and its optimiser.
+        obs, returns: the batch and this critic's GAE returns.
+        perms, minibatch, l2, max_grad_norm: as :func:`regress_critics`.
+        exchange: sends this half's norms, returns the other half's (None: stop).
+        first: this is the reward critic (its norms come first).
+
+    Returns:
+        The last minibatch's loss (without the L2 term), or None if ``exchange`` stopped.
+    """
+    weights = l2_weights(critic)
+    params = list(critic.parameters())
+    n = obs.shape[0]
+    loss = torch.tensor(0.0)
+    for perm in perms:
+        all_obs, all_ret = obs[perm], returns[perm]
+        for start in range(0, n, minibatch):
+            idx = slice(start, start + minibatch)
+            loss = ((critic(all_obs[idx]) - all_ret[idx]) ** 2).mean()
+            weight_norm = sum((p**2).sum() for p in weights)
+            optimizer.zero_grad()
+            (loss + l2 * weight_norm).backward()
+            if max_grad_norm is not None:
+                grads = [p.grad for p in params]
+                own = torch.stack(torch._foreach_norm(grads, 2.0))
+                other = exchange(own)
+                if other is None:
+                    return None
+                norms = torch.cat([own, other] if first else [other, own])
+                total = torch.linalg.vector_norm(norms, 2.0)
+                coef = torch.clamp(float(max_grad_norm) / (total + 1e-6), max=1.0)
+                torch._foreach_mul_(grads, coef)
+            optimizer.step()
+    return loss.item()
