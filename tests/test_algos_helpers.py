@@ -243,6 +243,7 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     from semdp.algos import on_policy
     from semdp.train import build_algorithm
 
+    monkeypatch.setattr(on_policy, "idle_core", lambda: False)  # a busy machine: probe both
     monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 1.0)  # every env counts as cheap
     cheap = build_algorithm(tiny_train("ppo"))
     critics = []
@@ -263,6 +264,20 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
         used.append((probing.envs_in_helper, probing.critics_in_helper))
     assert used[:2] == [(False, False), (True, True)]  # each way measured once, then the faster
     probing.close_helpers()
+    # a core idle at the start: the helpers from the first epoch; the cheap envs come back
+    monkeypatch.setattr(on_policy, "idle_core", lambda: True)
+    quiet = build_algorithm(tiny_train("ppo"))
+    quiet.train_epoch()
+    assert quiet.envs_in_helper and quiet.critics_in_helper
+    quiet.close_helpers()
+    monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 1.0)
+    cheap_quiet = build_algorithm(tiny_train("ppo"))
+    for _ in range(2):
+        cheap_quiet.train_epoch()
+    assert not cheap_quiet.envs_in_helper and cheap_quiet.critics_in_helper
+    cheap_quiet.close_helpers()
+    run(tiny_train("ppo"), tmp_path / "quiet")
+    assert _rows(tmp_path / "quiet") == _rows(tmp_path / "sync")
     assert not mp.active_children()
 
 

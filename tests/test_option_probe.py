@@ -39,3 +39,26 @@ def test_periodic_reprobe_and_pinned_choice() -> None:
     probe = FasterOption()
     probe.disallow()
     assert probe.choose() is False
+
+
+def test_starting_with_the_helper_measures_the_other_way_only_when_it_slows_down() -> None:
+    quiet = _drive(FasterOption(first=True), {False: [2.0], True: [1.0, 1.1, 0.95, 1.05]}, 30)
+    assert quiet == [True] * 30  # no epoch spent on the slower way
+    # the machine gets busy at epoch 4: 3x slower with the helper, then the sync way wins
+    busy = [1.0, 1.0, 1.0, 1.0, 3.0, 3.0, 3.0, 3.0]
+    used = _drive(FasterOption(first=True, reprobe_every=100), {False: [2.0], True: busy}, 8)
+    assert used == [True, True, True, True, True, False, False, False]
+    assert _drive(FasterOption(allowed=False, first=True), {False: [1.0], True: [0.1]}, 3) \
+        == [False] * 3
+
+
+def test_idle_core_reads_the_idle_share(monkeypatch) -> None:
+    from semdp.common import option_probe
+
+    samples = iter([(100.0, 1000.0), (100.0 + 190.0, 1000.0 + 200.0)])  # 95 % idle of 2 CPUs
+    monkeypatch.setattr(option_probe, "_cpu_times", lambda: next(samples))
+    assert option_probe.idle_core(sample_s=0.0, cpus=2)
+    samples = iter([(0.0, 1000.0), (100.0, 1200.0)])  # one of 2 CPUs busy (50 % idle)
+    monkeypatch.setattr(option_probe, "_cpu_times", lambda: next(samples))
+    assert not option_probe.idle_core(sample_s=0.0, cpus=2)
+    assert not option_probe.idle_core(sample_s=0.0, cpus=1)

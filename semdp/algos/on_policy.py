@@ -44,7 +44,7 @@ from semdp.common.forked_worker import fork_available
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
 from semdp.common.optim import FlatAdam
-from semdp.common.option_probe import FasterOption
+from semdp.common.option_probe import FasterOption, idle_core
 from semdp.common.vector_stepping import VectorStepper, stepper_for
 
 logger = logging.getLogger(__name__)
@@ -180,8 +180,10 @@ class OnPolicyAlgorithm(Algorithm):
         self.vectorization, self.parallel_critics = vectorization, parallel_critics
         #: Whether the envs step with a helper (per rollout) and the critics regress in one
         #: (per update): fixed by ``"sync"``/``"async"``/``True``/``False``, probed by ``auto``.
-        self._env_choice = FasterOption(helpers and _plain_sub_envs(envs))
-        self._critic_choice = FasterOption(helpers)
+        # with a core idle now, the helpers are used from the first epoch (option_probe)
+        first = helpers and "auto" in (vectorization, parallel_critics) and idle_core()
+        self._env_choice = FasterOption(helpers and _plain_sub_envs(envs), first=first)
+        self._critic_choice = FasterOption(helpers, first=first)
         self.envs_in_helper = vectorization == "async"
         self.critics_in_helper = parallel_critics is True
         self._update_start = 0.0
@@ -236,14 +238,16 @@ class OnPolicyAlgorithm(Algorithm):
                          range(local), self.num_envs, noise[:, :local], self._obs[:local])
         seconds["policy"] += part.policy_s
         seconds["simulation"] += part.simulation_s
+        # this process's vector step, scaled to all the sub-envs
+        step_s = part.simulation_s * self.num_envs / max(local, 1) / self.n_steps
         if helper is not None:
             wait = perf()
             remote = helper.result()
             seconds["simulation"] += perf() - wait
             seconds["simulation_worker"] += remote.simulation_s
             part = RolloutPart.concatenate(part, remote)
-        elif part.simulation_s / self.n_steps < ASYNC_MIN_STEP_S:
-            self._env_choice.disallow()  # cheaper than the pipe to a helper
+        if step_s < ASYNC_MIN_STEP_S:  # cheaper than the pipe to a helper: the envs stay here
+            self._env_choice.disallow()
         stats = self._value_rollout(part)
         self._env_choice.record(self.envs_in_helper, perf() - rollout_start)
         return stats
