@@ -9,8 +9,9 @@ for any split; the policy's forward pass then sees smaller batches, whose floati
 results may differ in the last bits (as for any change of the evaluation's vector size), so a
 chaotic episode can end differently: the numbers are reproducible for a given ``workers``, not
 across values of it. Results are ordered by (sub-env, episode) before they are averaged. The
-SEMDP envs' counters (plans, timings) of the helper's sub-envs are added back to this process's
-copies, so throughput reports count every evaluation step. Splitting needs ``fork`` and a
+SEMDP envs' counters (plans, timings) of the helper's sub-envs are recorded with this process's
+copies as work done elsewhere (step counts and the mean plan time include them; the wall-time
+split, which the helper overlapped, does not). Splitting needs ``fork`` and a
 vector env built like ``SyncVectorEnv`` (a list ``envs`` of sub-envs); otherwise the episodes
 run here.
 """

@@ -30,8 +30,12 @@ def find_semdp(env: gym.Env) -> SafetyEmbeddedEnv | None:
     return None
 
 
-def timing_summary(vec_envs: list[gym.vector.VectorEnv | None]) -> dict[str, float]:
-    """Summed wrapper timings and step counts over every sub-env of the given vector envs."""
+def timing_summary(
+    vec_envs: list[gym.vector.VectorEnv | None], elsewhere: bool = False
+) -> dict[str, float]:
+    """Summed wrapper timings and step counts over every sub-env of the given vector envs;
+    with ``elsewhere``, also what their copies did in evaluation helper processes (work done,
+    not this process's wall time)."""
     totals = dict.fromkeys(TIMING_KEYS, 0.0)
     totals.update(high_level_steps=0, low_level_steps=0)
     for vec in vec_envs:
@@ -43,6 +47,9 @@ def timing_summary(vec_envs: list[gym.vector.VectorEnv | None]) -> dict[str, flo
                 totals[key] += semdp.timing[key]
             totals["high_level_steps"] += semdp.high_level_steps
             totals["low_level_steps"] += semdp.low_level_steps
+            if elsewhere:
+                for key, value in semdp.elsewhere.items():
+                    totals[key] = totals.get(key, 0.0) + value
     return totals
 
 
@@ -69,24 +76,25 @@ def throughput(algo: Any, progress_csv: Path | None = None) -> dict[str, Any]:
     does not include) and ``learning_and_overhead_s``, the rest of the training wall time.
     """
     train = timing_summary([algo.envs])
-    evaluation = timing_summary([algo.eval_envs])
+    evaluation = timing_summary([algo.eval_envs])  # this process's share: the wall time's
+    work = timing_summary([algo.eval_envs], elsewhere=True)  # helpers' evaluation steps too
     wall = float(algo.wall_time)
     split = _epoch_split(progress_csv)
     if split is None:
         inside = {key: train[key] + evaluation[key] for key in TIMING_KEYS}
         split = {**inside, "learning_and_overhead_s": max(wall - sum(inside.values()), 0.0)}
-    plans = train["high_level_steps"] + evaluation["high_level_steps"]
+    plans = train["high_level_steps"] + work["high_level_steps"]
     return {
         "k": int(train["low_level_steps"] / max(train["high_level_steps"], 1)),
         "train_high_level_steps": int(train["high_level_steps"]),
         "train_low_level_steps": int(train["low_level_steps"]),
-        "eval_high_level_steps": int(evaluation["high_level_steps"]),
+        "eval_high_level_steps": int(work["high_level_steps"]),
         "wall_time_s": wall,
         "high_level_steps_per_s": train["high_level_steps"] / max(wall, 1e-9),
         "env_steps_per_s": train["low_level_steps"] / max(wall, 1e-9),
         "time_split_s": split,
         "time_split_fraction": {key: value / max(wall, 1e-9) for key, value in split.items()},
-        "plan_ms_mean": 1e3 * (train["plan_s"] + evaluation["plan_s"]) / max(plans, 1),
+        "plan_ms_mean": 1e3 * (train["plan_s"] + work["plan_s"]) / max(plans, 1),
     }
 
 
