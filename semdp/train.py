@@ -64,6 +64,8 @@ def validate_config(cfg: DictConfig) -> None:
         raise ConfigError(f"seed must be >= 0, got {cfg.seed}")
     if number("torch_threads") < 1:
         raise ConfigError(f"torch_threads must be >= 1, got {cfg.torch_threads}")
+    if "eval_workers" in cfg and number("eval_workers") < 1:  # absent in older runs' configs
+        raise ConfigError(f"eval_workers must be >= 1, got {cfg.eval_workers}")
     if number("env.num_envs") < 1:
         raise ConfigError(f"env.num_envs must be >= 1, got {cfg.env.num_envs}")
     if not cfg.env.get("id"):

@@ -129,7 +129,7 @@ def test_train_resume_after_crash_matches_uninterrupted_run(
     ("override", "key"),
     [("cost_limit=-1", "cost_limit"), ("total_steps=0", "total_steps"),
      ("budget.steps_per_epoch=0", "algo.steps_per_epoch"), ("seed=-3", "seed"),
-     ("env.num_envs=0", "env.num_envs")],
+     ("env.num_envs=0", "env.num_envs"), ("eval_workers=0", "eval_workers")],
 )
 def test_train_bad_config_fails_fast_naming_the_key(
     override: str, key: str, tiny_train: Callable[..., DictConfig], tmp_path: Path
