@@ -16,12 +16,11 @@ import pytest
 import torch
 from omegaconf import DictConfig, open_dict
 
-from semdp.common.critic_regression import CriticTargets, regress_critic_half, regress_critics
-from semdp.common.critic_worker import CriticWorker, optimizer_slice
+from semdp.common.critic_regression import CriticTargets, regress_critics
+from semdp.common.critic_worker import CriticWorker
 from semdp.common.forked_worker import fork_available
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import ValueCritic
-from semdp.common.optim import FlatAdam
 from semdp.common.vector_stepping import VectorStepper, success_flags
 from semdp.envs import make_vec_env, split_step_infos
 from semdp.train import run
@@ -146,54 +145,6 @@ def test_critic_worker_regresses_bit_identically_and_can_be_cancelled() -> None:
         worker.cancel()
         with pytest.raises(RuntimeError, match="no critic regression"):
             worker.result(*copies, opt_copy)
-    finally:
-        worker.close()
-
-
-def test_split_critic_regression_is_the_joint_one_bit_for_bit() -> None:
-    torch.manual_seed(1)
-    nets = [ValueCritic(5, (8, 8)) for _ in range(2)]
-    copies = [ValueCritic(5, (8, 8)) for _ in range(2)]
-    for net, twin in zip(nets, copies, strict=True):
-        twin.load_state_dict(net.state_dict())
-    opt = FlatAdam([p for n in nets for p in n.parameters()], lr=1e-2)
-    opt_copy = FlatAdam([p for n in copies for p in n.parameters()], lr=1e-2)
-    targets = CriticTargets(torch.randn(64, 5) * 3, torch.randn(64) * 10, torch.randn(64))
-    perms = [torch.randperm(64) for _ in range(3)]
-    worker = CriticWorker(*copies, opt_copy)
-    try:
-        for _ in range(2):  # the second round starts from trained Adam state
-            worker.submit_half(copies[0], opt_copy, targets, perms, 16, 1e-3, 0.5)
-            split = worker.finish_half(*copies, opt_copy, targets, perms, 16, 1e-3, 0.5)
-            joint = regress_critics(*nets, opt, targets, perms, 16, 1e-3, 0.5)
-            assert split == joint
-            for net, twin in zip(nets, copies, strict=True):
-                for p, q in zip(net.parameters(), twin.parameters(), strict=True):
-                    assert torch.equal(p, q)
-        saved, saved_copy = opt.state_dict(), opt_copy.state_dict()
-        for i, state in saved["state"].items():
-            assert all(torch.equal(saved_copy["state"][i][k], v) for k, v in state.items())
-        # the clip binds (a large target scale): without the exchanged norms the halves differ
-        lone = [ValueCritic(5, (8, 8)) for _ in range(2)]
-        for net, twin in zip(nets, lone, strict=True):
-            twin.load_state_dict(net.state_dict())
-        opt_lone = FlatAdam(lone[0].parameters(), lr=1e-2)
-        n_r = len(list(lone[0].parameters()))
-        opt_lone.load_state_dict(optimizer_slice(opt.state_dict(), 0, n_r))
-        regress_critic_half(lone[0], opt_lone, targets.obs, targets.ret_r, perms, 16, 1e-3, 0.5,
-                            exchange=lambda own: torch.zeros_like(own), first=True)
-        regress_critics(*nets, opt, targets, perms, 16, 1e-3, 0.5)
-        assert not torch.equal(lone[0].net[0].weight, nets[0].net[0].weight)
-        # a failure in the trainer's half cancels the helper's; the next job runs normally
-        with pytest.raises(RuntimeError, match="planted"):
-            worker.submit_half(copies[0], opt_copy, targets, perms, 16, 1e-3, 0.5)
-            bad = CriticTargets(targets.obs, targets.ret_r, torch.full((63,), float("nan")))
-            try:
-                worker.finish_half(*copies, opt_copy, bad, perms, 16, 1e-3, 0.5)
-            except (IndexError, RuntimeError) as exc:
-                raise RuntimeError("planted") from exc
-        worker.submit_half(copies[0], opt_copy, targets, perms, 16, 1e-3, 0.5)
-        assert worker.finish_half(*copies, opt_copy, targets, perms, 16, 1e-3, 0.5)
     finally:
         worker.close()
 

@@ -82,12 +82,9 @@ def _plain_sub_envs(envs: gym.vector.VectorEnv) -> bool:
 
 @dataclass(frozen=True)
 class _CriticJob:
-    """A critic regression running in the helper, on the permutations after ``skip`` draws;
-    ``half``: only the reward critic's half, the trainer regresses the cost critic."""
+    """A critic regression running in the helper, on the permutations after ``skip`` draws."""
 
     skip: int
-    half: bool = False
-    perms: list[torch.Tensor] | None = None
 
 
 class OnPolicyAlgorithm(Algorithm):
@@ -117,10 +114,6 @@ class OnPolicyAlgorithm(Algorithm):
     """
 
     base_columns: tuple[str, ...] = ("loss_v", "loss_vc", "entropy", "kl")
-    #: With the critic helper, split the regression: the helper regresses the reward critic
-    #: while this process, after its actor update, regresses the cost critic (for a short
-    #: actor update, as TRPO's; :meth:`CriticWorker.submit_half`).
-    split_critics: bool = False
 
     def __init__(
         self,
@@ -357,15 +350,9 @@ class OnPolicyAlgorithm(Algorithm):
         if self._critic_worker is None:
             self._critic_worker = CriticWorker(self.critic_r, self.critic_c,
                                                self.critic_optimizer)
-        targets = CriticTargets(batch.obs, batch.ret_r, batch.ret_c)
-        if self.split_critics:
-            self._critic_worker.submit_half(
-                self.critic_r, self.critic_optimizer, targets, perms,
-                self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
-            )
-            return _CriticJob(skip, half=True, perms=perms)
         self._critic_worker.submit(
-            self.critic_r, self.critic_c, self.critic_optimizer, targets, perms,
+            self.critic_r, self.critic_c, self.critic_optimizer,
+            CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
             self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
         )
         return _CriticJob(skip)
@@ -380,17 +367,8 @@ class OnPolicyAlgorithm(Algorithm):
         cancelled and the critics regress here.
         """
         if job is not None and self._critic_worker is not None and job.skip == drawn:
-            if job.half:
-                assert job.perms is not None
-                loss_v, loss_vc = self._critic_worker.finish_half(
-                    self.critic_r, self.critic_c, self.critic_optimizer,
-                    CriticTargets(batch.obs, batch.ret_r, batch.ret_c), job.perms,
-                    self._critic_minibatch(batch.obs.shape[0]), self.critic_l2,
-                    self.max_grad_norm,
-                )
-            else:
-                loss_v, loss_vc = self._critic_worker.result(
-                    self.critic_r, self.critic_c, self.critic_optimizer)
+            loss_v, loss_vc = self._critic_worker.result(
+                self.critic_r, self.critic_c, self.critic_optimizer)
             n = batch.obs.shape[0]
             for _ in range(self.critic_iters):
                 torch.randperm(n)

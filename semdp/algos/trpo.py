@@ -7,9 +7,8 @@ gradients on Fisher-vector products (Hessian of the mean KL, damping ``cg_dampin
 ``backtrack_iters`` tries) accepting the first step with KL <= ``target_kl`` and an improved
 surrogate, else keeping the old parameters. Critics: ``critic_iters`` minibatch passes at
 ``critic_lr`` (OmniSafe: 10 passes, lr 1e-3); the actor step draws no random numbers, so with
-``parallel_critics`` the reward critic regresses in a helper process meanwhile on exactly the
-permutations it would draw afterwards, and the cost critic here after the actor step, the two
-exchanging their gradient norms for the joint clip (the same numbers as one process).
+``parallel_critics`` the critics regress in a helper process meanwhile on exactly the
+permutations they would draw afterwards.
 """
 
 from __future__ import annotations
@@ -65,8 +64,6 @@ class TRPO(OnPolicyAlgorithm):
     """
 
     extra_columns = ("loss_pi", *OnPolicyAlgorithm.base_columns, "step_frac")
-    # one natural-gradient step is short beside the critics' minibatch passes
-    split_critics = True
 
     def __init__(
         self,

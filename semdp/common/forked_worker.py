@@ -127,13 +127,6 @@ class ForkedWorker:
         self.send(request)
         return self.receive()
 
-    def has_reply(self) -> bool:
-        """Whether a reply (or the end of the pipe) is waiting to be received."""
-        try:
-            return self._conn.poll(0)
-        except (OSError, ValueError):
-            return True
-
     @property
     def alive(self) -> bool:
         """Whether the helper is running and its pipe open."""
