@@ -37,7 +37,33 @@ def clip_grad_norm(params: Sequence[nn.Parameter], max_norm: float) -> torch.Ten
     return total
 
 
-class FlatAdam(torch.optim.Adam):
+class _OneGroupAdam(torch.optim.Adam):
+    """``torch.optim.Adam`` over one parameter group, with ``zero_grad`` dropping the gradients
+    of a cached parameter list (the base of :class:`FlatAdam` and :class:`LeanAdam`)."""
+
+    def __init__(
+        self,
+        params: Iterable[nn.Parameter],
+        lr: float = 1e-3,
+        betas: tuple[float, float] = (0.9, 0.999),
+        eps: float = 1e-8,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(params, lr=lr, betas=betas, eps=eps, **kwargs)
+        if len(self.param_groups) != 1:
+            raise ValueError(f"{type(self).__name__} takes one parameter group")
+        self._params: list[nn.Parameter] = list(self.param_groups[0]["params"])
+
+    def zero_grad(self, set_to_none: bool = True) -> None:
+        """Drop the gradients (``set_to_none=False``: zero them in place)."""
+        if not set_to_none:
+            super().zero_grad(set_to_none=False)
+            return
+        for p in self._params:
+            p.grad = None
+
+
+class FlatAdam(_OneGroupAdam):
     """``torch.optim.Adam`` on one contiguous buffer (one parameter group, every parameter with
     a gradient at every step).
 
@@ -58,9 +84,6 @@ class FlatAdam(torch.optim.Adam):
         eps: float = 1e-8,
     ) -> None:
         super().__init__(params, lr=lr, betas=betas, eps=eps)
-        if len(self.param_groups) != 1:
-            raise ValueError("FlatAdam takes one parameter group")
-        self._params: list[nn.Parameter] = list(self.param_groups[0]["params"])
         self._sizes = [p.numel() for p in self._params]
         first = self._params[0]
         self._flat = torch.zeros(sum(self._sizes), dtype=first.dtype, device=first.device)
@@ -82,14 +105,6 @@ class FlatAdam(torch.optim.Adam):
                 view.copy_(p)
                 p.data = view
         self._views = views
-
-    def zero_grad(self, set_to_none: bool = True) -> None:
-        """Drop the gradients (``set_to_none=False``: zero them in place)."""
-        if not set_to_none:
-            super().zero_grad(set_to_none=False)
-            return
-        for p in self._params:
-            p.grad = None
 
     @torch.no_grad()
     def step(self, closure: Any = None) -> None:  # type: ignore[override]
@@ -145,7 +160,7 @@ class FlatAdam(torch.optim.Adam):
         self.state.clear()
 
 
-class LeanAdam(torch.optim.Adam):
+class LeanAdam(_OneGroupAdam):
     """``torch.optim.Adam(fused=True)`` (no weight decay, no AMSGrad) whose step calls the fused
     CPU kernel directly, without the optimiser's per-step grouping and checks.
 
@@ -168,18 +183,7 @@ class LeanAdam(torch.optim.Adam):
         eps: float = 1e-8,
     ) -> None:
         super().__init__(params, lr=lr, betas=betas, eps=eps, fused=True)
-        if len(self.param_groups) != 1:
-            raise ValueError("LeanAdam takes one parameter group")
-        self._params: list[nn.Parameter] = list(self.param_groups[0]["params"])
         self._state_lists: tuple[list[torch.Tensor], ...] | None = None
-
-    def zero_grad(self, set_to_none: bool = True) -> None:
-        """Drop the gradients (``set_to_none=False``: zero them in place)."""
-        if not set_to_none:
-            super().zero_grad(set_to_none=False)
-            return
-        for p in self._params:
-            p.grad = None
 
     @torch.no_grad()
     def step(self, closure: Any = None) -> None:  # type: ignore[override]
