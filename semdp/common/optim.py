@@ -41,15 +41,17 @@ class _OneGroupAdam(torch.optim.Adam):
     """``torch.optim.Adam`` over one parameter group, with ``zero_grad`` dropping the gradients
     of a cached parameter list (the base of :class:`FlatAdam` and :class:`LeanAdam`)."""
 
+    #: Build torch's Adam with its fused CPU kernel.
+    fused_kernel: bool | None = None
+
     def __init__(
         self,
         params: Iterable[nn.Parameter],
         lr: float = 1e-3,
         betas: tuple[float, float] = (0.9, 0.999),
         eps: float = 1e-8,
-        **kwargs: Any,
     ) -> None:
-        super().__init__(params, lr=lr, betas=betas, eps=eps, **kwargs)
+        super().__init__(params, lr=lr, betas=betas, eps=eps, fused=self.fused_kernel)
         if len(self.param_groups) != 1:
             raise ValueError(f"{type(self).__name__} takes one parameter group")
         self._params: list[nn.Parameter] = list(self.param_groups[0]["params"])
@@ -76,14 +78,8 @@ class FlatAdam(_OneGroupAdam):
         lr, betas, eps: as ``torch.optim.Adam``.
     """
 
-    def __init__(
-        self,
-        params: Iterable[nn.Parameter],
-        lr: float = 1e-3,
-        betas: tuple[float, float] = (0.9, 0.999),
-        eps: float = 1e-8,
-    ) -> None:
-        super().__init__(params, lr=lr, betas=betas, eps=eps)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:  # _OneGroupAdam's arguments
+        super().__init__(*args, **kwargs)
         self._sizes = [p.numel() for p in self._params]
         first = self._params[0]
         self._flat = torch.zeros(sum(self._sizes), dtype=first.dtype, device=first.device)
@@ -175,15 +171,9 @@ class LeanAdam(_OneGroupAdam):
         lr, betas, eps: as ``torch.optim.Adam``.
     """
 
-    def __init__(
-        self,
-        params: Iterable[nn.Parameter],
-        lr: float = 1e-3,
-        betas: tuple[float, float] = (0.9, 0.999),
-        eps: float = 1e-8,
-    ) -> None:
-        super().__init__(params, lr=lr, betas=betas, eps=eps, fused=True)
-        self._state_lists: tuple[list[torch.Tensor], ...] | None = None
+    fused_kernel = True
+    #: Adam's state tensors (``exp_avg``, ``exp_avg_sq``, ``step`` lists) once created.
+    _state_lists: tuple[list[torch.Tensor], ...] | None = None
 
     @torch.no_grad()
     def step(self, closure: Any = None) -> None:  # type: ignore[override]
