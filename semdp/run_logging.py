@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -15,7 +16,6 @@ from omegaconf import DictConfig
 
 from semdp.common.logger import RowSource, RunLogging, SinkFactory, run_logging
 from semdp.common.tensorboard import TensorBoardRows, tensorboard_available
-from semdp.embedded.epoch_timing import EpochTimeSplit, has_semdp_env
 
 logger = logging.getLogger(__name__)
 
@@ -31,10 +31,20 @@ def tensorboard_enabled(cfg: DictConfig) -> bool:
     return True
 
 
+def _semdp_sources(algo: Any) -> list[RowSource]:
+    """The SEMDP time split, for runs with a Safety-Embedded MDP env (its modules, which
+    import the planner and CasADi, are loaded only then)."""
+    if "semdp.embedded.wrapper" not in sys.modules:  # no SEMDP env was built
+        return []
+    from semdp.embedded.epoch_timing import EpochTimeSplit, has_semdp_env
+
+    return [EpochTimeSplit(algo)] if has_semdp_env(algo) else []
+
+
 @contextlib.contextmanager
 def progress_logging(cfg: DictConfig, algo: Any) -> Iterator[RunLogging]:
     """Context for :meth:`Algorithm.learn`: the row sources and sinks of this run."""
-    sources: list[RowSource] = [EpochTimeSplit(algo)] if has_semdp_env(algo) else []
+    sources = _semdp_sources(algo)
     sinks: list[SinkFactory] = [TensorBoardRows] if tensorboard_enabled(cfg) else []
     with run_logging(sources, sinks) as active:
         yield active

@@ -200,3 +200,15 @@ def test_train_sp_ppo_lag_variants_run_through_the_app(
     rows = _rows(tmp_path)
     assert all(float(r["lagrange_multiplier"]) >= 0.0 for r in rows)
     assert all(r["cost_threshold"] != "" for r in rows)
+
+
+def test_semdp_train_does_not_load_the_planner_for_other_envs() -> None:
+    """CasADi and the planner load with a SEMDP env only (start-up of every other run)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, semdp.train; "
+            "print('casadi' in sys.modules, 'solvers.planner' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, check=True)
+    assert done.stdout.split() == ["False", "False"]
