@@ -118,7 +118,10 @@ class ProcessLearner:
         if not self._loaded:
             self._loaded = True
             self._send("load", self.core.state_dict())
-        send_message(self._conn, (command, args))
+        try:
+            send_message(self._conn, (command, args))
+        except OSError as exc:  # BrokenPipeError, ConnectionResetError: the process is gone
+            raise LearnerError(f"the learner process hung up ({exc!r})") from exc
         self._outstanding += 1
 
     def _receive(self) -> Any:
