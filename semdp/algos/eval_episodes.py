@@ -158,7 +158,8 @@ def evaluate_episodes(
     """
     quota = episode_quota(episodes, envs.num_envs)
     groups = worker_groups(quota, workers) if workers > 1 and fork_available() else []
-    if len(groups) < 2 or subset_env(envs, groups[0]) is None:
+    own = subset_env(envs, groups[0]) if len(groups) > 1 else None
+    if own is None:
         results = run_episodes(envs, policy, seed, quota, range(envs.num_envs))
         return sorted(results, key=lambda r: r[:2])
     helpers: list[tuple[list[int], ForkedWorker]] = []
@@ -167,8 +168,6 @@ def evaluate_episodes(
             worker = ForkedWorker(_child_job(envs, policy, seed, quota, group), "semdp-eval")
             worker.send(b"run")
             helpers.append((group, worker))
-        own = subset_env(envs, groups[0])
-        assert own is not None
         results = run_episodes(own, policy, [seed + i for i in groups[0]], quota, groups[0])
         for group, worker in helpers:
             status, payload, deltas = pickle.loads(worker.receive())
