@@ -50,6 +50,7 @@ from semdp.common.vector_stepping import VectorStepper, stepper_for
 logger = logging.getLogger(__name__)
 
 VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
+CRITIC_GRADS: tuple[str, ...] = ("stacked", "autograd")
 #: ``vectorization="auto"``: seconds per vector step of the envs (first rollout, in this
 #: process) from which they move to the helper.
 ASYNC_MIN_STEP_S = 2e-4
@@ -111,6 +112,9 @@ class OnPolicyAlgorithm(Algorithm):
             forked helper) or ``"auto"`` (see the module docstring).
         parallel_critics: regress the critics in a forked helper during the actor update
             (``True``/``False``/``"auto"``).
+        critic_grads: ``"stacked"`` (both critics as one network with hand-written gradients,
+            :mod:`semdp.common.stacked_critics`) or ``"autograd"`` (the same regression through
+            autograd; the numbers differ in the last bits).
     """
 
     base_columns: tuple[str, ...] = ("loss_v", "loss_vc", "entropy", "kl")
@@ -137,8 +141,13 @@ class OnPolicyAlgorithm(Algorithm):
         obs_clip: float = 5.0,
         vectorization: str = "auto",
         parallel_critics: bool | str = "auto",
+        critic_grads: str = "stacked",
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
+        if critic_grads not in CRITIC_GRADS:
+            raise ValueError(f"critic_grads must be one of {list(CRITIC_GRADS)}, "
+                             f"got {critic_grads!r}")
+        self.critic_autograd = critic_grads == "autograd"
         for name, v in (("critic_iters", critic_iters), ("critic_minibatches", critic_minibatches)):
             if v < 1:
                 raise ValueError(f"{name} must be >= 1, got {v}")
@@ -324,6 +333,7 @@ class OnPolicyAlgorithm(Algorithm):
             self.critic_r, self.critic_c, self.critic_optimizer,
             CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
             self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
+            autograd=self.critic_autograd,
         )
         assert losses is not None  # no stop condition here
         return {"loss_v": losses[0], "loss_vc": losses[1]}
@@ -354,6 +364,7 @@ class OnPolicyAlgorithm(Algorithm):
             self.critic_r, self.critic_c, self.critic_optimizer,
             CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
             self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
+            autograd=self.critic_autograd,
         )
         return _CriticJob(skip)
 

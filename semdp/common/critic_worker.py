@@ -71,7 +71,7 @@ class _Server:
             losses = regress_critics(
                 self.critic_r, self.critic_c, self.optimizer, CriticTargets(obs, ret_r, ret_c),
                 perms, job["minibatch"], job["l2"], job["max_grad_norm"],
-                stop=lambda: self.cancel[0] == 1,
+                stop=lambda: self.cancel[0] == 1, autograd=job["autograd"],
             )
             if losses is None:
                 return _CANCELLED
@@ -111,8 +111,10 @@ class CriticWorker:
         minibatch: int,
         l2: float,
         max_grad_norm: float | None,
+        autograd: bool = False,
     ) -> None:
-        """Start a regression from the given critics' current state."""
+        """Start a regression from the given critics' current state (arguments as
+        :func:`~semdp.common.critic_regression.regress_critics`)."""
         if self._pending:
             raise RuntimeError("a critic regression is already running")
         self._cancel[0] = 0
@@ -123,6 +125,7 @@ class CriticWorker:
             "targets": [t.numpy() for t in targets],
             "perms": [p.numpy() for p in perms],
             "minibatch": int(minibatch), "l2": float(l2), "max_grad_norm": max_grad_norm,
+            "autograd": bool(autograd),
         }  # fmt: skip
         self._worker.send(pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL))
         self._pending = True

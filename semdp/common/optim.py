@@ -114,18 +114,38 @@ class FlatAdam(_OneGroupAdam):
         if any(g is None for g in grads):
             raise RuntimeError("FlatAdam needs a gradient for every parameter")
         grad = torch.cat([g.reshape(-1) for g in grads])
+        self.step_buffers(self._flat, grad, self._exp_avg, self._exp_avg_sq)
+
+    def buffers(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The flat parameters, ``exp_avg`` and ``exp_avg_sq`` (parameter order, in place)."""
+        if any(p.data_ptr() != v.data_ptr() for p, v in zip(self._params, self._views,
+                                                           strict=True)):
+            self._attach()
+        return self._flat, self._exp_avg, self._exp_avg_sq
+
+    @torch.no_grad()
+    def step_buffers(
+        self,
+        params: torch.Tensor,
+        grad: torch.Tensor,
+        exp_avg: torch.Tensor,
+        exp_avg_sq: torch.Tensor,
+    ) -> None:
+        """One Adam step (``_single_tensor_adam``'s arithmetic) on flat buffers given in any
+        order of the elements (the arithmetic is elementwise), counted as a step of this
+        optimiser; :meth:`step` runs it on :meth:`buffers`."""
         group = self.param_groups[0]
         lr, (beta1, beta2), eps = group["lr"], group["betas"], group["eps"]
         self._steps += 1
-        self._exp_avg.lerp_(grad, 1 - beta1)
-        self._exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+        exp_avg.lerp_(grad, 1 - beta1)
+        exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
         step = float(self._steps)
         bias_correction1 = 1 - beta1**step
         bias_correction2 = 1 - beta2**step
         step_size = lr / bias_correction1
         bias_correction2_sqrt = bias_correction2**0.5
-        denom = (self._exp_avg_sq.sqrt() / bias_correction2_sqrt).add_(eps)
-        self._flat.addcdiv_(self._exp_avg, denom, value=-step_size)
+        denom = (exp_avg_sq.sqrt() / bias_correction2_sqrt).add_(eps)
+        params.addcdiv_(exp_avg, denom, value=-step_size)
 
     def state_dict(self) -> dict[str, Any]:
         """``torch.optim.Adam``'s layout: per-parameter ``step``, ``exp_avg``, ``exp_avg_sq``."""
