@@ -24,33 +24,16 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import nn
 
+from semdp.common.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, mlp_layers
 from semdp.common.optim import FlatAdam
-
-#: Hidden activations with a hand-written derivative, as a function of the activation's output.
-ACTIVATION_GRADS: dict[type[nn.Module], Callable[[torch.Tensor], torch.Tensor]] = {
-    nn.Tanh: lambda h: 1 - h * h,
-    nn.ReLU: lambda h: (h > 0).to(h.dtype),
-}
-_ACTIVATIONS: dict[type[nn.Module], Callable[[torch.Tensor], torch.Tensor]] = {
-    nn.Tanh: torch.tanh,
-    nn.ReLU: torch.relu,
-}
 
 
 def _layers(critic: nn.Module) -> tuple[list[nn.Linear], list[type[nn.Module]]] | None:
-    """The Linear layers and hidden activation types of ``critic.net`` if it is the
-    ``Linear, act, ..., Linear`` MLP of :func:`~semdp.common.networks.mlp` (else ``None``)."""
-    net = getattr(critic, "net", None)
-    if not isinstance(net, nn.Sequential) or len(net) % 2 == 0:
+    """The layers of ``critic.net`` if it is a one-output MLP with hand-written derivatives."""
+    parts = mlp_layers(getattr(critic, "net", None))
+    if parts is None or parts[0][-1].out_features != 1:
         return None
-    linears, acts = list(net)[0::2], list(net)[1::2]
-    if not all(type(m) is nn.Linear for m in linears):
-        return None
-    if not all(type(m) in ACTIVATION_GRADS for m in acts):
-        return None
-    if linears[-1].out_features != 1:
-        return None
-    return linears, [type(m) for m in acts]
+    return parts
 
 
 class StackedCritics:
@@ -138,7 +121,7 @@ class StackedCritics:
         decay = torch.zeros_like(params)  # d(l2 * sum W^2)/dW = 2 l2 W on the weights only
         for w, _ in self._views(decay):
             w.fill_(2.0 * l2)
-        acts = [_ACTIVATIONS[a] for a in self.activations]
+        acts = [ACTIVATIONS[a] for a in self.activations]
         act_grads = [ACTIVATION_GRADS[a] for a in self.activations]
         returns = torch.stack((ret_r, ret_c))  # (2, N)
         n = obs.shape[0]
