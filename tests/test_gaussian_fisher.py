@@ -86,9 +86,9 @@ def test_trpo_and_cpo_steps_agree_with_the_autograd_product(
     """One actor update on the same batch: the same accepted step, parameters equal to
     rounding (the line search and CPO's case selection see the same numbers)."""
     results = []
-    for product in ("analytic", "autograd"):
+    for product in ("written", "autograd"):
         torch.manual_seed(0)
-        trainer = build_algorithm(tiny_train(algo, f"+algo.fisher_product={product}",
+        trainer = build_algorithm(tiny_train(algo, f"+algo.gradients={product}",
                                              "+algo.vectorization=sync"))
         stats = trainer.collect_rollout()
         trainer.before_update(stats)
@@ -104,5 +104,5 @@ def test_trpo_and_cpo_steps_agree_with_the_autograd_product(
 
 
 def test_unknown_product_is_rejected(tiny_train: Callable[..., DictConfig]) -> None:
-    with pytest.raises(Exception, match="fisher_product must be one of"):
-        build_algorithm(tiny_train("trpo_lag", "+algo.fisher_product=exact"))
+    with pytest.raises(Exception, match="gradients must be one of"):
+        build_algorithm(tiny_train("trpo_lag", "+algo.gradients=exact"))

@@ -50,7 +50,8 @@ from semdp.common.vector_stepping import VectorStepper, stepper_for
 logger = logging.getLogger(__name__)
 
 VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
-CRITIC_GRADS: tuple[str, ...] = ("stacked", "autograd")
+#: ``gradients=``: derivatives written out where the networks allow it, or autograd throughout.
+GRADIENTS: tuple[str, ...] = ("written", "autograd")
 #: ``vectorization="auto"``: seconds per vector step of the envs (first rollout, in this
 #: process) from which they move to the helper.
 ASYNC_MIN_STEP_S = 2e-4
@@ -112,9 +113,12 @@ class OnPolicyAlgorithm(Algorithm):
             forked helper) or ``"auto"`` (see the module docstring).
         parallel_critics: regress the critics in a forked helper during the actor update
             (``True``/``False``/``"auto"``).
-        critic_grads: ``"stacked"`` (both critics as one network with hand-written gradients,
-            :mod:`semdp.common.stacked_critics`) or ``"autograd"`` (the same regression through
-            autograd; the numbers differ in the last bits).
+        gradients: ``"written"`` (the default MLPs' derivatives written out: both critics'
+            regression as one stacked network, :mod:`semdp.common.stacked_critics`; PPO's
+            clipped-surrogate step, :mod:`semdp.common.ppo_actor_step`; TRPO's and CPO's
+            Fisher-vector product, :mod:`semdp.common.gaussian_fisher`) or ``"autograd"``
+            (the same quantities through autograd, ~2-3x slower; the numbers differ in the
+            last bits, the learning curves within noise).
     """
 
     base_columns: tuple[str, ...] = ("loss_v", "loss_vc", "entropy", "kl")
@@ -141,13 +145,13 @@ class OnPolicyAlgorithm(Algorithm):
         obs_clip: float = 5.0,
         vectorization: str = "auto",
         parallel_critics: bool | str = "auto",
-        critic_grads: str = "stacked",
+        gradients: str = "written",
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
-        if critic_grads not in CRITIC_GRADS:
-            raise ValueError(f"critic_grads must be one of {list(CRITIC_GRADS)}, "
-                             f"got {critic_grads!r}")
-        self.critic_autograd = critic_grads == "autograd"
+        if gradients not in GRADIENTS:
+            raise ValueError(f"gradients must be one of {list(GRADIENTS)}, got {gradients!r}")
+        #: ``gradients="autograd"``: no written-out derivatives.
+        self.autograd_only = gradients == "autograd"
         for name, v in (("critic_iters", critic_iters), ("critic_minibatches", critic_minibatches)):
             if v < 1:
                 raise ValueError(f"{name} must be >= 1, got {v}")
@@ -333,7 +337,7 @@ class OnPolicyAlgorithm(Algorithm):
             self.critic_r, self.critic_c, self.critic_optimizer,
             CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
             self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
-            autograd=self.critic_autograd,
+            autograd=self.autograd_only,
         )
         assert losses is not None  # no stop condition here
         return {"loss_v": losses[0], "loss_vc": losses[1]}
@@ -364,7 +368,7 @@ class OnPolicyAlgorithm(Algorithm):
             self.critic_r, self.critic_c, self.critic_optimizer,
             CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
             self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
-            autograd=self.critic_autograd,
+            autograd=self.autograd_only,
         )
         return _CriticJob(skip)
 

@@ -4,7 +4,9 @@ Update scheme (recorded choice, semdp/README.md "Algorithms and recorded choices
 ``update_iters`` passes x ``num_minibatches`` minibatches, gradient-norm clip 0.5, actor learning
 rate linearly decayed to 0 over the run, early stop of the passes when the approximate KL on the
 whole batch exceeds ``target_kl`` (OmniSafe's per-pass check). The cost critic is trained as well
-so that PPO logs the same columns as its constrained variants.
+so that PPO logs the same columns as its constrained variants. The minibatch step of the
+Gaussian actor has its derivatives written out (:mod:`semdp.common.ppo_actor_step`;
+``gradients="autograd"`` runs it through autograd).
 
 With ``parallel_critics`` the critics regress in a helper process during the actor passes. Their
 permutations come from torch's generator after the actor's, whose number is only known when
@@ -23,6 +25,7 @@ import torch
 from semdp.algos.on_policy import OnPolicyAlgorithm
 from semdp.common.buffers import RolloutBatch
 from semdp.common.optim import FlatAdam, clip_grad_norm
+from semdp.common.ppo_actor_step import PPOActorStep
 
 
 class PPO(OnPolicyAlgorithm):
@@ -109,6 +112,8 @@ class PPO(OnPolicyAlgorithm):
         n = batch.obs.shape[0]
         mb = max(1, n // self.num_minibatches)
         actor_params = list(self.actor.parameters())
+        written = None if self.autograd_only else PPOActorStep.build(self.actor,
+                                                                     self.actor_optimizer)
         loss_pi, entropy, kl, passes = torch.tensor(0.0), torch.tensor(0.0), 0.0, 0
         for _ in range(self.update_iters):
             perm = torch.randperm(n)  # one gather per pass; minibatches are slices of it
@@ -116,6 +121,11 @@ class PPO(OnPolicyAlgorithm):
                                                                    batch.log_probs, adv))
             for start in range(0, n, mb):
                 idx = slice(start, start + mb)
+                if written is not None:
+                    loss_pi, entropy = written.step(
+                        obs[idx], actions[idx], old_log_probs[idx], advs[idx],
+                        self.clip_range, self.ent_coef, self.max_grad_norm)
+                    continue
                 dist = self.actor.distribution(obs[idx])
                 log_ratio = dist.log_prob(actions[idx]).sum(-1) - old_log_probs[idx]
                 ratio = log_ratio.exp()

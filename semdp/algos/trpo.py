@@ -26,9 +26,6 @@ from semdp.algos.on_policy import OnPolicyAlgorithm
 from semdp.common.buffers import RolloutBatch
 from semdp.common.gaussian_fisher import GaussianFisher
 
-#: Ways to compute the Fisher-vector product (:meth:`TRPO.fisher_vector_product`).
-FISHER_PRODUCTS: tuple[str, ...] = ("analytic", "autograd")
-
 
 def conjugate_gradient(
     matvec: Callable[[torch.Tensor], torch.Tensor],
@@ -64,11 +61,8 @@ class TRPO(OnPolicyAlgorithm):
         cg_damping: Tikhonov damping added to the Fisher-vector product.
         backtrack_iters: maximum line-search steps.
         backtrack_coef: step shrink factor per line-search step.
-        fisher_product: ``"analytic"`` (the Gaussian actor's Fisher-vector product written out,
-            :mod:`semdp.common.gaussian_fisher`; other actors fall back to autograd) or
-            ``"autograd"`` (double backward through the mean KL; the same product up to
-            rounding).
-        **kwargs: forwarded to :class:`~semdp.algos.on_policy.OnPolicyAlgorithm` (critic settings;
+        **kwargs: forwarded to :class:`~semdp.algos.on_policy.OnPolicyAlgorithm` (critic settings,
+            ``gradients="autograd"`` for the double-backward Fisher-vector product;
             ``critic_lr`` defaults to 1e-3 and ``critic_minibatches`` to the batch size / 128).
     """
 
@@ -85,7 +79,6 @@ class TRPO(OnPolicyAlgorithm):
         cg_damping: float = 0.1,
         backtrack_iters: int = 15,
         backtrack_coef: float = 0.8,
-        fisher_product: str = "analytic",
         **kwargs: Any,
     ) -> None:
         kwargs.setdefault("critic_lr", 1e-3)
@@ -97,10 +90,6 @@ class TRPO(OnPolicyAlgorithm):
             raise ValueError(
                 f"cg_iters and backtrack_iters must be >= 1, got {cg_iters}, {backtrack_iters}"
             )
-        if fisher_product not in FISHER_PRODUCTS:
-            raise ValueError(f"fisher_product must be one of {list(FISHER_PRODUCTS)}, "
-                             f"got {fisher_product!r}")
-        self.fisher_product = fisher_product
         if not 0 < backtrack_coef < 1:
             raise ValueError(f"backtrack_coef must be in (0, 1), got {backtrack_coef}")
         self.target_kl, self.cg_iters, self.cg_damping = target_kl, cg_iters, cg_damping
@@ -140,7 +129,7 @@ class TRPO(OnPolicyAlgorithm):
     ) -> Callable[[torch.Tensor], torch.Tensor]:
         """``v -> (F + damping I) v`` with F the Hessian of the mean KL at the old policy
         (the current parameters: called before the step)."""
-        if self.fisher_product == "analytic":
+        if not self.autograd_only:
             fisher = GaussianFisher.build(self.actor, batch.obs, self.cg_damping)
             if fisher is not None:
                 return fisher

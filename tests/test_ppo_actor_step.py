@@ -1,0 +1,84 @@
+"""PPO's written-out clipped-surrogate step against the autograd step."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+
+import pytest
+import torch
+from omegaconf import DictConfig
+from torch.nn.utils import parameters_to_vector
+
+from semdp.common.networks import GaussianActor
+from semdp.common.optim import FlatAdam, clip_grad_norm
+from semdp.common.ppo_actor_step import PPOActorStep
+from semdp.train import build_algorithm
+
+
+def _autograd_step(actor: GaussianActor, opt: FlatAdam, obs: torch.Tensor, actions: torch.Tensor,
+                   old: torch.Tensor, adv: torch.Tensor, clip: float, ent: float,
+                   max_norm: float | None) -> float:
+    dist = actor.distribution(obs)
+    ratio = (dist.log_prob(actions).sum(-1) - old).exp()
+    surrogate = torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv)
+    loss = -surrogate.mean() - ent * dist.entropy().sum(-1).mean()
+    opt.zero_grad()
+    loss.backward()
+    if max_norm is not None:
+        clip_grad_norm(list(actor.parameters()), max_norm)
+    opt.step()
+    return float(loss.detach())
+
+
+@pytest.mark.parametrize(("hidden", "activation", "ent", "max_norm"),
+                         [((16, 16), "tanh", 0.0, 0.5), ((8,), "relu", 0.01, None)])
+def test_written_step_equals_the_autograd_step(
+    hidden: tuple[int, ...], activation: str, ent: float, max_norm: float | None
+) -> None:
+    torch.manual_seed(0)
+    actor = GaussianActor(4, 2, hidden, activation, log_std_init=-0.3)
+    obs, actions = torch.randn(64, 4), torch.randn(64, 2)
+    adv = torch.randn(64)
+    with torch.no_grad():  # an "old" policy such that some ratios leave the clip range
+        old = actor.log_prob(obs, actions) + 0.3 * torch.randn(64)
+    clone = copy.deepcopy(actor)
+    opt_a = FlatAdam(actor.parameters(), lr=3e-3)
+    opt_w = FlatAdam(clone.parameters(), lr=3e-3)
+    written = PPOActorStep.build(clone, opt_w)
+    assert written is not None
+    ratio = (actor.log_prob(obs, actions) - old).exp()
+    assert ((ratio < 0.8) | (ratio > 1.2)).any() and ((ratio > 0.8) & (ratio < 1.2)).any()
+    for _ in range(8):
+        loss_a = _autograd_step(actor, opt_a, obs, actions, old, adv, 0.2, ent, max_norm)
+        loss_w, _ = written.step(obs, actions, old, adv, 0.2, ent, max_norm)
+        assert float(loss_w) == pytest.approx(loss_a, rel=1e-5, abs=1e-7)
+    theta_a = parameters_to_vector(actor.parameters()).detach()
+    theta_w = parameters_to_vector(clone.parameters()).detach()
+    assert (theta_a - parameters_to_vector(GaussianActor(4, 2, hidden, activation).parameters())
+            ).abs().max() > 1e-3
+    torch.testing.assert_close(theta_w, theta_a, rtol=1e-5, atol=1e-6)
+
+
+def test_other_optimisers_take_the_autograd_step() -> None:
+    actor = GaussianActor(4, 2)
+    assert PPOActorStep.build(actor, torch.optim.Adam(actor.parameters())) is None
+    assert PPOActorStep.build(GaussianActor(4, 2, (8,), "elu"),
+                              FlatAdam(GaussianActor(4, 2).parameters())) is None
+
+
+def test_ppo_update_written_or_autograd_gives_the_same_actor(
+    tiny_train: Callable[..., DictConfig]
+) -> None:
+    thetas = []
+    for gradients in ("written", "autograd"):
+        torch.manual_seed(0)
+        trainer = build_algorithm(tiny_train("ppo_lag", f"+algo.gradients={gradients}",
+                                             "+algo.vectorization=sync",
+                                             "+algo.parallel_critics=false"))
+        stats = trainer.collect_rollout()
+        trainer.before_update(stats)
+        out = trainer._update(trainer.compute_batch())
+        assert out["update_passes"] == 2
+        thetas.append(parameters_to_vector(trainer.actor.parameters()).detach())
+    torch.testing.assert_close(thetas[0], thetas[1], rtol=1e-5, atol=1e-6)
