@@ -88,7 +88,7 @@ def test_trpo_and_cpo_steps_agree_with_the_autograd_product(
     results = []
     for product in ("written", "autograd"):
         torch.manual_seed(0)
-        trainer = build_algorithm(tiny_train(algo, f"+algo.gradients={product}",
+        trainer = build_algorithm(tiny_train(algo, f"algo.gradients={product}",
                                              "+algo.vectorization=sync"))
         stats = trainer.collect_rollout()
         trainer.before_update(stats)
@@ -105,4 +105,4 @@ def test_trpo_and_cpo_steps_agree_with_the_autograd_product(
 
 def test_unknown_product_is_rejected(tiny_train: Callable[..., DictConfig]) -> None:
     with pytest.raises(Exception, match="gradients must be one of"):
-        build_algorithm(tiny_train("trpo_lag", "+algo.gradients=exact"))
+        build_algorithm(tiny_train("trpo_lag", "algo.gradients=exact"))

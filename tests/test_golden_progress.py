@@ -46,7 +46,7 @@ def _is_clock(column: str) -> bool:
     [
         ("ppo_lag_point_goal1_ci_s0.csv",
          ["algo=ppo_lag", "env=point_goal1", "budget=ci", "seed=0", "eval_workers=1",
-          "+algo.gradients=autograd"]),
+          "algo.gradients=autograd"]),
         ("semdp_ci_s0.csv", ["experiment=semdp", "budget=ci", "seed=0", "loop=sequential",
                              "robot.rescue_backend=null", "env.shield=null", "eval_workers=1"]),
     ],
