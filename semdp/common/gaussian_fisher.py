@@ -20,7 +20,12 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from semdp.common.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, mlp_layers
+from semdp.common.mlp_grads import (
+    ACTIVATION_GRADS,
+    ACTIVATIONS,
+    backprop_mlp,
+    gaussian_actor_layers,
+)
 
 
 class GaussianFisher:
@@ -47,16 +52,11 @@ class GaussianFisher:
     def build(cls, actor: nn.Module, obs: torch.Tensor, damping: float) -> GaussianFisher | None:
         """The product for ``actor`` (a ``log_std`` vector and a ``mean_net`` MLP, in that
         parameter order) on ``obs``; ``None`` if the actor is not of that form."""
-        parts = mlp_layers(getattr(actor, "mean_net", None))
-        log_std = getattr(actor, "log_std", None)
-        if parts is None or not isinstance(log_std, torch.Tensor) or log_std.dim() != 1:
+        parts = gaussian_actor_layers(actor)
+        if parts is None:
             return None
         linears, activations = parts
-        expected = [log_std] + [p for m in linears for p in (m.weight, m.bias)]
-        params = list(actor.parameters())
-        if len(params) != len(expected) or any(a is not b for a, b in
-                                                zip(params, expected, strict=False)):
-            return None
+        log_std: torch.Tensor = actor.log_std
         layers = [(m.weight.detach(), m.bias.detach()) for m in linears]
         inputs, slopes = [obs], []
         h = obs
@@ -89,11 +89,6 @@ class GaussianFisher:
             tangent = z * self.slopes[k] if k < last else z
         assert tangent is not None
         # back through the network with diag(1/sigma^2)/N applied
-        delta = tangent * self.inv_var
-        for k in range(last, -1, -1):
-            _, _, gw, gb = views[k]
-            torch.mm(delta.t(), self.inputs[k], out=gw)
-            torch.sum(delta, 0, out=gb)
-            if k:
-                delta = torch.mm(delta, self.layers[k][0]) * self.slopes[k - 1]
+        backprop_mlp(tangent * self.inv_var, self.inputs, [w for w, _ in self.layers],
+                     self.slopes, [(gw, gb) for _, _, gw, gb in views])
         return out.add_(v, alpha=self.damping)

@@ -24,7 +24,12 @@ import math
 import torch
 from torch import nn
 
-from semdp.common.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, mlp_layers
+from semdp.common.mlp_grads import (
+    ACTIVATION_GRADS,
+    ACTIVATIONS,
+    backprop_mlp,
+    gaussian_actor_layers,
+)
 from semdp.common.optim import FlatAdam
 
 _HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
@@ -52,18 +57,15 @@ class PPOActorStep:
         """The step for ``actor`` and ``optimizer``, or ``None`` if they are not of that form."""
         if type(optimizer) is not FlatAdam:
             return None
-        parts = mlp_layers(getattr(actor, "mean_net", None))
-        log_std = getattr(actor, "log_std", None)
-        if parts is None or not isinstance(log_std, torch.Tensor) or log_std.dim() != 1:
+        parts = gaussian_actor_layers(actor)
+        if parts is None:
+            return None
+        own, params = optimizer.param_groups[0]["params"], list(actor.parameters())
+        if len(own) != len(params) or any(a is not b for a, b in zip(own, params, strict=False)):
             return None
         linears, activations = parts
-        expected = [log_std] + [p for m in linears for p in (m.weight, m.bias)]
-        own = optimizer.param_groups[0]["params"]
-        if len(own) != len(expected) or any(a is not b for a, b in
-                                             zip(own, expected, strict=False)):
-            return None
         shapes = [(m.out_features, m.in_features) for m in linears]
-        return cls(shapes, activations, log_std.numel(), optimizer)
+        return cls(shapes, activations, actor.log_std.numel(), optimizer)
 
     def _views(self, flat: torch.Tensor) -> tuple[torch.Tensor,
                                                    list[tuple[torch.Tensor, torch.Tensor]]]:
@@ -92,11 +94,12 @@ class PPOActorStep:
         log_std, layers = self._views(flat)
         g_log_std, grads = self._views(self.grad)
         batch = obs.shape[0]
-        inputs = [obs]
+        inputs, slopes = [obs], []
         h = obs
-        for (w, b), act in zip(layers[:-1], self.acts, strict=True):
+        for (w, b), act, slope in zip(layers[:-1], self.acts, self.slopes, strict=True):
             h = act(torch.addmm(b, h, w.t()))
             inputs.append(h)
+            slopes.append(slope(h))
         w_out, b_out = layers[-1]
         mean = torch.addmm(b_out, h, w_out.t())
         inv_var = torch.exp(-2.0 * log_std)
@@ -115,13 +118,8 @@ class PPOActorStep:
         d_log_prob = torch.where(active, unclipped, 0.0).mul_(-1.0 / batch).unsqueeze(-1)
         torch.sum(d_log_prob * (sq - 1.0), 0, out=g_log_std)
         g_log_std.sub_(ent_coef)
-        delta = d_log_prob * scaled  # d loss / d mu
-        for k in range(len(layers) - 1, -1, -1):
-            gw, gb = grads[k]
-            torch.mm(delta.t(), inputs[k], out=gw)
-            torch.sum(delta, 0, out=gb)
-            if k:
-                delta = torch.mm(delta, layers[k][0]) * self.slopes[k - 1](inputs[k])
+        # d loss / d mu, back through the mean network
+        backprop_mlp(d_log_prob * scaled, inputs, [w for w, _ in layers], slopes, grads)
         if max_grad_norm is not None:
             total = torch.linalg.vector_norm(self.grad)
             self.grad.mul_(torch.clamp(float(max_grad_norm) / (total + 1e-6), max=1.0))

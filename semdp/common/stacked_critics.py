@@ -24,7 +24,7 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import nn
 
-from semdp.common.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, mlp_layers
+from semdp.common.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, backprop_mlp, mlp_layers
 from semdp.common.optim import FlatAdam
 
 
@@ -123,6 +123,7 @@ class StackedCritics:
             w.fill_(2.0 * l2)
         acts = [ACTIVATIONS[a] for a in self.activations]
         act_grads = [ACTIVATION_GRADS[a] for a in self.activations]
+        weights = [w for w, _ in layers]
         returns = torch.stack((ret_r, ret_c))  # (2, N)
         n = obs.shape[0]
         err = torch.zeros(2, 0)
@@ -135,20 +136,17 @@ class StackedCritics:
                     x = all_obs[start:start + minibatch]
                     batch = x.shape[0]
                     h = x.expand(2, batch, x.shape[1])
-                    hidden = [h]
-                    for (w, b), act in zip(layers[:-1], acts, strict=True):
+                    hidden, slopes = [h], []
+                    for (w, b), act, slope in zip(layers[:-1], acts, act_grads, strict=True):
                         h = act(torch.baddbmm(b.unsqueeze(1), h, w.transpose(1, 2)))
                         hidden.append(h)
+                        slopes.append(slope(h))
                     w_out, b_out = layers[-1]
                     value = torch.baddbmm(b_out.unsqueeze(1), h, w_out.transpose(1, 2))
                     err = value.squeeze(-1) - all_ret[:, start:start + minibatch]
-                    delta = (err * (2.0 / batch)).unsqueeze(-1)  # d loss / d value, (2, B, 1)
-                    for k in range(len(layers) - 1, -1, -1):
-                        gw, gb = grads[k]
-                        torch.bmm(delta.transpose(1, 2), hidden[k], out=gw)
-                        torch.sum(delta, 1, out=gb)
-                        if k:
-                            delta = torch.bmm(delta, layers[k][0]) * act_grads[k - 1](hidden[k])
+                    # d loss / d value, (2, B, 1), back through both networks
+                    backprop_mlp((err * (2.0 / batch)).unsqueeze(-1), hidden, weights, slopes,
+                                 grads)
                     grad.addcmul_(params, decay)
                     if max_grad_norm is not None:
                         total = torch.linalg.vector_norm(grad)
