@@ -6,8 +6,9 @@ Finds every run directory below ``SWEEP_DIR`` (one holding ``metrics.json`` and/
 (default ``SWEEP_DIR/report``):
 
 * ``table.md`` -- Table 3.1 layout: rows environment x {reward, cost}, columns methods, cells
-  mean ± standard error over seeds of the final evaluation; then one line per failed or
-  unfinished run naming it and why;
+  mean ± standard error over seeds of the final evaluation; with ``--compare A,B`` the
+  difference A − B per environment ± its standard error and in standard errors
+  (:mod:`semdp.reporting.compare`); then one line per failed or unfinished run naming it and why;
 * ``curves_<env>.png`` -- episode return and cost vs env steps, one curve per method,
   Savitzky-Golay smoothed, shaded ±1 standard error over seeds;
 * ``tradeoff_<env>.png`` -- Fig. B.1 (reward vs cost over ε') when runs carry ``tradeoff``.
@@ -15,6 +16,7 @@ Finds every run directory below ``SWEEP_DIR`` (one holding ``metrics.json`` and/
 Example::
 
     semdp-report outputs/multirun/2026-11-22_10-00-00 --out outputs/reference/semdp_push
+    semdp-report outputs/multirun/sp_safety_gym/laptop/<time> --compare SP-PPO-Lag,PPO-Lag
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+from semdp.reporting.compare import difference_lines
 from semdp.reporting.names import algorithm_name
 from semdp.reporting.plots import method_colours, plot_tradeoff, plot_training_curves
 from semdp.reporting.runs import UNKNOWN, RunRecord, load_runs, mean_and_standard_error
@@ -51,7 +54,11 @@ def order_labels(labels: set[str], order: list[str] | None = None) -> list[str]:
 
 
 def build_table(
-    runs: list[RunRecord], root: Path, digits: int = 2, order: list[str] | None = None
+    runs: list[RunRecord],
+    root: Path,
+    digits: int = 2,
+    order: list[str] | None = None,
+    compare: tuple[str, str] | None = None,
 ) -> str:
     """Markdown of Table 3.1 (mean ± SE over seeds) plus the list of incomplete runs.
 
@@ -60,6 +67,11 @@ def build_table(
         root: the sweep directory (run paths are shown relative to it).
         digits: decimals in the cells.
         order: method labels to put first, in this order (Table 3.1: SEMDP, CPO, ...).
+        compare: two method labels ``(A, B)`` (``ppo_lag`` also names ``PPO-Lag``): adds the
+            section of differences A − B.
+
+    Raises:
+        ValueError: if a label of ``compare`` names no method of the runs.
     """
     usable = [run for run in runs if run.has_final_eval]
     # Runs known only by their directory (no metrics.json, no config.yaml) get no column or row of
@@ -87,7 +99,14 @@ def build_table(
                 format_cell(values[(env, label, metric)], max_seeds, digits) for label in labels
             ]
             lines.append(f"| {env} | {metric} | " + " | ".join(cells) + " |")
-    lines += ["", f"Runs found: {len(runs)}; with a final evaluation: {len(usable)}.", ""]
+    lines.append("")
+    if compare is not None:
+        pair = [name if name in labels else algorithm_name(name) for name in compare]
+        missing = [name for name in pair if name not in labels]
+        if missing:
+            raise ValueError(f"--compare: no method {missing[0]!r} among {labels}")
+        lines += difference_lines(values, envs, pair[0], pair[1], digits)
+    lines += [f"Runs found: {len(runs)}; with a final evaluation: {len(usable)}.", ""]
     incomplete = [run for run in runs if run.problems]
     if incomplete:
         lines += ["## Failed or unfinished runs", ""]
@@ -104,12 +123,30 @@ def build_table(
     return "\n".join(lines)
 
 
+def parse_compare(text: str) -> tuple[str, str] | None:
+    """``"A,B"`` -> ``("A", "B")``; empty -> ``None``.
+
+    Raises:
+        ValueError: for anything but two non-empty labels.
+    """
+    if not text.strip():
+        return None
+    parts = [part.strip() for part in text.split(",")]
+    if len(parts) != 2 or not all(parts):
+        raise ValueError(f"--compare takes two method labels A,B, got {text!r}")
+    return parts[0], parts[1]
+
+
 def _file_safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "env"
 
 
 def write_report(
-    root: Path, out_dir: Path, digits: int = 2, order: list[str] | None = None
+    root: Path,
+    out_dir: Path,
+    digits: int = 2,
+    order: list[str] | None = None,
+    compare: tuple[str, str] | None = None,
 ) -> list[Path]:
     """Write ``table.md``, the curve PNGs and any trade-off PNGs; return the written paths.
 
@@ -123,7 +160,7 @@ def write_report(
         raise ValueError(f"no run directories (metrics.json or progress.csv) found below {root}")
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / TABLE_NAME]
-    written[0].write_text(build_table(runs, root, digits, order))
+    written[0].write_text(build_table(runs, root, digits, order, compare))
     colours = method_colours(runs)
     for env in sorted({run.env for run in runs}):
         curves = out_dir / f"curves_{_file_safe(env)}.png"
@@ -148,11 +185,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--order", default="", help="comma-separated method labels to put first (table columns)"
     )
+    parser.add_argument(
+        "--compare", default="", help="two method labels A,B: add the differences A - B"
+    )
     args = parser.parse_args(argv)
     out_dir = args.out if args.out is not None else args.sweep_dir / "report"
     try:
         order = [label.strip() for label in args.order.split(",") if label.strip()]
-        written = write_report(args.sweep_dir, out_dir, args.digits, order)
+        written = write_report(args.sweep_dir, out_dir, args.digits, order,
+                               parse_compare(args.compare))
     except ValueError as exc:
         sys.exit(f"semdp-report: {exc}")
     print(written[0].read_text())

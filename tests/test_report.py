@@ -303,3 +303,24 @@ def test_semdp_curves_start_after_the_followers_training_steps(tmp_path: Path) -
     logged = np.array([float(r["env_steps"]) for r in csv.DictReader(
         (run_dir / "progress.csv").open())])
     np.testing.assert_allclose(steps, logged * 10 + 60000)
+
+
+def test_compare_adds_differences_with_their_standard_errors(sweep: Path) -> None:
+    # push1: semdp 6 ± 1/sqrt(3), PPO-Lag 2 ± 1 -> +4 ± sqrt(1/3 + 1) = 1.1547, +3.5 SE;
+    # cost 0 ± 0 vs 6 ± 2 -> -6 ± 2, -3.0 SE; goal1 has no PPO-Lag run.
+    table = build_table(load_runs(sweep), sweep, compare=("semdp", "ppo_lag"))
+    lines = table.splitlines()
+    assert "## semdp − PPO-Lag" in lines
+    row = next(line for line in lines if line.startswith("| push1 |") and "±" in line
+               and line.count("|") == 6)
+    assert [c.strip() for c in row.strip("|").split("|")] == \
+        ["push1", "+4.00 ± 1.15", "+3.5", "-6.00 ± 2.00", "-3.0"]
+    goal = next(line for line in lines if line.startswith("| goal1 |") and line.count("|") == 6)
+    assert goal.count("–") == 4
+    with pytest.raises(ValueError, match="no method 'TRPO-Lag'"):
+        build_table(load_runs(sweep), sweep, compare=("semdp", "trpo_lag"))
+
+
+def test_cli_compare_rejects_a_malformed_pair(sweep: Path, tmp_path: Path) -> None:
+    with pytest.raises(SystemExit, match="two method labels"):
+        main([str(sweep), "--out", str(tmp_path / "r"), "--compare", "semdp"])

@@ -21,7 +21,7 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
-from semdp.report import write_report
+from semdp.report import parse_compare, write_report
 
 MACHINE = ("2 CPU cores (x86_64 VM), no GPU, 1 torch thread per run, `hydra.launcher.n_jobs=1`; "
            "the machine was shared with other jobs (several helpers training and testing), so "
@@ -60,10 +60,11 @@ def sweep_summary(sweep_dir: Path) -> dict[str, Any]:
 
 
 def write_reference(sweep_dir: Path, out_dir: Path, order: list[str] | None = None,
-                    note: str = "", command: str = "") -> Path:
+                    note: str = "", command: str = "",
+                    compare: tuple[str, str] | None = None) -> Path:
     """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path."""
     sweep_dir, out_dir = Path(sweep_dir), Path(out_dir)
-    write_report(sweep_dir, out_dir, order=order)
+    write_report(sweep_dir, out_dir, order=order, compare=compare)
     summary = sweep_summary(sweep_dir)
     table = (out_dir / "table.md").read_text().replace(str(sweep_dir.resolve()), "<sweep dir>")
     (out_dir / "table.md").write_text(table)
@@ -100,9 +101,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--note", default="", help="a paragraph added to COMMAND.md")
     parser.add_argument("--command", default="",
                         help="the command(s) to record (default: from multirun.yaml)")
+    parser.add_argument("--compare", default="",
+                        help="two method labels A,B: add the differences A - B")
     args = parser.parse_args(argv)
     order = [s.strip() for s in args.order.split(",") if s.strip()]
-    path = write_reference(args.sweep_dir, args.out_dir, order, args.note, args.command)
+    path = write_reference(args.sweep_dir, args.out_dir, order, args.note, args.command,
+                           parse_compare(args.compare))
     print(path.read_text())
 
 
