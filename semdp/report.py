@@ -28,6 +28,8 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+import numpy as np
+
 from semdp.reporting.compare import difference_lines
 from semdp.reporting.names import algorithm_name
 from semdp.reporting.plots import method_colours, plot_tradeoff, plot_training_curves
@@ -59,6 +61,7 @@ def build_table(
     digits: int = 2,
     order: list[str] | None = None,
     compare: tuple[str, str] | None = None,
+    late: float = 0.0,
 ) -> str:
     """Markdown of Table 3.1 (mean ± SE over seeds) plus the list of incomplete runs.
 
@@ -69,6 +72,9 @@ def build_table(
         order: method labels to put first, in this order (Table 3.1: SEMDP, CPO, ...).
         compare: two method labels ``(A, B)`` (``ppo_lag`` also names ``PPO-Lag``): adds the
             section of differences A − B.
+        late: with ``0 < late <= 1``, a second table (and differences) of the training
+            episodes' return and cost averaged over the last ``late`` fraction of each completed
+            run's epochs (the stochastic policy, what the thesis' training curves show).
 
     Raises:
         ValueError: if a label of ``compare`` names no method of the runs.
@@ -79,6 +85,14 @@ def build_table(
     named = [run for run in runs if run.has_final_eval or UNKNOWN not in (run.label, run.env)]
     labels = order_labels({run.label for run in named}, order)
     envs = sorted({run.env for run in named})
+    if not 0.0 <= late <= 1.0:
+        raise ValueError(f"late must be in [0, 1], got {late}")
+    pair = None
+    if compare is not None:
+        pair = [name if name in labels else algorithm_name(name) for name in compare]
+        missing = [name for name in pair if name not in labels]
+        if missing:
+            raise ValueError(f"--compare: no method {missing[0]!r} among {labels}")
     values: dict[tuple[str, str, str], list[float]] = defaultdict(list)
     for run in usable:
         values[(run.env, run.label, "reward")].append(float(run.eval_return))  # type: ignore[arg-type]
@@ -89,23 +103,22 @@ def build_table(
         "Final evaluation (`metrics.json` eval.return_mean / eval.cost_mean), mean ± standard "
         "error over seeds; `(n=k)` marks cells with fewer seeds than the most complete method.",
         "",
-        "| env | metric | " + " | ".join(labels) + " |",
-        "|---|---|" + "---|" * len(labels),
+        *_value_table(values, envs, labels, digits),
     ]
-    for env in envs:
-        max_seeds = max((len(values[(env, label, "reward")]) for label in labels), default=0)
-        for metric in ("reward", "cost"):
-            cells = [
-                format_cell(values[(env, label, metric)], max_seeds, digits) for label in labels
-            ]
-            lines.append(f"| {env} | {metric} | " + " | ".join(cells) + " |")
-    lines.append("")
-    if compare is not None:
-        pair = [name if name in labels else algorithm_name(name) for name in compare]
-        missing = [name for name in pair if name not in labels]
-        if missing:
-            raise ValueError(f"--compare: no method {missing[0]!r} among {labels}")
+    if pair is not None:
         lines += difference_lines(values, envs, pair[0], pair[1], digits)
+    if late > 0:
+        late_values = late_training_values(usable, late)
+        lines += [
+            f"## Training episodes, last {late:.0%} of the epochs", "",
+            "`progress.csv` ep_return / ep_cost (the stochastic policy's training episodes) "
+            f"averaged over the last {late:.0%} of each run's epochs, then mean ± standard "
+            "error over seeds.", "",
+            *_value_table(late_values, envs, labels, digits),
+        ]  # fmt: skip
+        if pair is not None:
+            lines += difference_lines(late_values, envs, pair[0], pair[1], digits,
+                                      title="training episodes")
     lines += [f"Runs found: {len(runs)}; with a final evaluation: {len(usable)}.", ""]
     incomplete = [run for run in runs if run.problems]
     if incomplete:
@@ -137,6 +150,41 @@ def parse_compare(text: str) -> tuple[str, str] | None:
     return parts[0], parts[1]
 
 
+def _value_table(
+    values: dict[tuple[str, str, str], list[float]], envs: list[str], labels: list[str],
+    digits: int,
+) -> list[str]:
+    """Rows env x {reward, cost}, columns methods, cells mean ± SE."""
+    lines = ["| env | metric | " + " | ".join(labels) + " |", "|---|---|" + "---|" * len(labels)]
+    for env in envs:
+        max_seeds = max((len(values[(env, label, "reward")]) for label in labels), default=0)
+        for metric in ("reward", "cost"):
+            cells = [
+                format_cell(values[(env, label, metric)], max_seeds, digits) for label in labels
+            ]
+            lines.append(f"| {env} | {metric} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+def late_training_values(
+    runs: list[RunRecord], fraction: float
+) -> dict[tuple[str, str, str], list[float]]:
+    """Per (env, label, metric) the runs' mean training-episode return/cost over the last
+    ``fraction`` of their epochs (at least one; empty cells skipped; runs without a training
+    episode there are left out)."""
+    out: dict[tuple[str, str, str], list[float]] = defaultdict(list)
+    for run in runs:
+        for metric, column in (("reward", "ep_return"), ("cost", "ep_cost")):
+            series = run.curves.get(column)
+            if series is None or series.size == 0:
+                continue
+            tail = series[-max(1, math.ceil(fraction * series.size)):]
+            tail = tail[~np.isnan(tail)]
+            if tail.size:
+                out[(run.env, run.label, metric)].append(float(tail.mean()))
+    return out
+
+
 def _file_safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "env"
 
@@ -147,6 +195,7 @@ def write_report(
     digits: int = 2,
     order: list[str] | None = None,
     compare: tuple[str, str] | None = None,
+    late: float = 0.0,
 ) -> list[Path]:
     """Write ``table.md``, the curve PNGs and any trade-off PNGs; return the written paths.
 
@@ -160,7 +209,7 @@ def write_report(
         raise ValueError(f"no run directories (metrics.json or progress.csv) found below {root}")
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / TABLE_NAME]
-    written[0].write_text(build_table(runs, root, digits, order, compare))
+    written[0].write_text(build_table(runs, root, digits, order, compare, late))
     colours = method_colours(runs)
     for env in sorted({run.env for run in runs}):
         curves = out_dir / f"curves_{_file_safe(env)}.png"
@@ -188,12 +237,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--compare", default="", help="two method labels A,B: add the differences A - B"
     )
+    parser.add_argument(
+        "--late", type=float, default=0.0,
+        help="also tabulate the training episodes over this last fraction of the epochs",
+    )
     args = parser.parse_args(argv)
     out_dir = args.out if args.out is not None else args.sweep_dir / "report"
     try:
         order = [label.strip() for label in args.order.split(",") if label.strip()]
         written = write_report(args.sweep_dir, out_dir, args.digits, order,
-                               parse_compare(args.compare))
+                               parse_compare(args.compare), args.late)
     except ValueError as exc:
         sys.exit(f"semdp-report: {exc}")
     print(written[0].read_text())

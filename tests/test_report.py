@@ -310,7 +310,7 @@ def test_compare_adds_differences_with_their_standard_errors(sweep: Path) -> Non
     # cost 0 ± 0 vs 6 ± 2 -> -6 ± 2, -3.0 SE; goal1 has no PPO-Lag run.
     table = build_table(load_runs(sweep), sweep, compare=("semdp", "ppo_lag"))
     lines = table.splitlines()
-    assert "## semdp − PPO-Lag" in lines
+    assert "## semdp − PPO-Lag (final evaluation)" in lines
     row = next(line for line in lines if line.startswith("| push1 |") and "±" in line
                and line.count("|") == 6)
     assert [c.strip() for c in row.strip("|").split("|")] == \
@@ -324,3 +324,19 @@ def test_compare_adds_differences_with_their_standard_errors(sweep: Path) -> Non
 def test_cli_compare_rejects_a_malformed_pair(sweep: Path, tmp_path: Path) -> None:
     with pytest.raises(SystemExit, match="two method labels"):
         main([str(sweep), "--out", str(tmp_path / "r"), "--compare", "semdp"])
+
+
+def test_late_training_table_averages_the_last_epochs(sweep: Path) -> None:
+    # progress rows: ep_return = epoch + offset, ep_cost = 5 + offset, 30 epochs; the last
+    # 10 % are epochs 28-30 (mean 29 + offset). semdp offsets 0, 1, 2 -> 29, 30, 31.
+    table = build_table(load_runs(sweep), sweep, late=0.1, compare=("semdp", "ppo_lag"))
+    section = table.split("## Training episodes, last 10% of the epochs")[1]
+    rows = {tuple(c.strip() for c in line.strip("|").split("|")[:2]):
+            [c.strip() for c in line.strip("|").split("|")[2:]]
+            for line in section.splitlines() if line.startswith("| push1 |")
+            and line.count("|") == 7}
+    assert rows[("push1", "reward")][2:] == ["29.00 ± 0.00 (n=2)", "30.00 ± 0.58"]
+    assert rows[("push1", "cost")][2:] == ["5.00 ± 0.00 (n=2)", "6.00 ± 0.58"]
+    assert "## semdp − PPO-Lag (training episodes)" in section
+    with pytest.raises(ValueError, match="late must be in"):
+        build_table(load_runs(sweep), sweep, late=1.5)

@@ -61,10 +61,10 @@ def sweep_summary(sweep_dir: Path) -> dict[str, Any]:
 
 def write_reference(sweep_dir: Path, out_dir: Path, order: list[str] | None = None,
                     note: str = "", command: str = "",
-                    compare: tuple[str, str] | None = None) -> Path:
+                    compare: tuple[str, str] | None = None, late: float = 0.0) -> Path:
     """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path."""
     sweep_dir, out_dir = Path(sweep_dir), Path(out_dir)
-    write_report(sweep_dir, out_dir, order=order, compare=compare)
+    write_report(sweep_dir, out_dir, order=order, compare=compare, late=late)
     summary = sweep_summary(sweep_dir)
     table = (out_dir / "table.md").read_text().replace(str(sweep_dir.resolve()), "<sweep dir>")
     (out_dir / "table.md").write_text(table)
@@ -103,10 +103,12 @@ def main(argv: list[str] | None = None) -> None:
                         help="the command(s) to record (default: from multirun.yaml)")
     parser.add_argument("--compare", default="",
                         help="two method labels A,B: add the differences A - B")
+    parser.add_argument("--late", type=float, default=0.0,
+                        help="also tabulate the training episodes over this last fraction")
     args = parser.parse_args(argv)
     order = [s.strip() for s in args.order.split(",") if s.strip()]
     path = write_reference(args.sweep_dir, args.out_dir, order, args.note, args.command,
-                           parse_compare(args.compare))
+                           parse_compare(args.compare), args.late)
     print(path.read_text())
 
 

@@ -28,11 +28,12 @@ def difference_lines(
     first: str,
     second: str,
     digits: int = 2,
+    title: str = "final evaluation",
 ) -> list[str]:
     """Markdown section: per environment ``first - second`` of each metric as
     ``difference ± SE`` and the difference in standard errors."""
     lines = [
-        f"## {first} − {second}", "",
+        f"## {first} − {second} ({title})", "",
         "Difference of the means over seeds ± its standard error (sqrt(SE₁² + SE₂²)), and the "
         "difference in those standard errors.", "",
         "| env | " + " | ".join(f"{m}: difference | {m}: in SE" for m in METRICS) + " |",
