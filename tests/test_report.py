@@ -340,3 +340,18 @@ def test_late_training_table_averages_the_last_epochs(sweep: Path) -> None:
     assert "## semdp − PPO-Lag (training episodes)" in section
     with pytest.raises(ValueError, match="late must be in"):
         build_table(load_runs(sweep), sweep, late=1.5)
+
+
+def test_cost_limit_is_read_from_config_and_drawn_only_when_shared(tmp_path: Path) -> None:
+    from semdp.reporting.plots import shared_cost_limit
+
+    runs = []
+    for i, limit in enumerate(("25.0", "25", None)):
+        path = _write_run(tmp_path / str(i), algo="ppo_lag", env="goal1", seed=i,
+                          eval_return=1.0, eval_cost=1.0)
+        if limit is not None:
+            (path / "config.yaml").write_text(f"algo:\n  cost_limit: 3.0\ncost_limit: {limit}\n")
+        runs.append(load_run(path))
+    assert [run.cost_limit for run in runs] == [25.0, 25.0, None]
+    assert shared_cost_limit(runs[:2]) == 25.0
+    assert shared_cost_limit(runs) is None  # one run's limit unknown: no line

@@ -91,6 +91,15 @@ def pretrain_offset(run: RunRecord) -> int:
     return pretrain_steps(run.path)
 
 
+def shared_cost_limit(runs: list[RunRecord]) -> float | None:
+    """The cost limit all ``runs`` were trained with, or ``None`` if it is unknown for some run
+    or differs between them (then no line is drawn)."""
+    limits = {run.cost_limit for run in runs}
+    if len(limits) != 1:
+        return None
+    return limits.pop()
+
+
 def plot_training_curves(
     runs: list[RunRecord], env: str, path: Path, colours: dict[str, str] | None = None
 ) -> bool:
@@ -119,6 +128,10 @@ def plot_training_curves(
             drawn = True
     if not drawn:
         return False
+    limit = shared_cost_limit([run for group in by_label.values() for run in group])
+    if limit is not None:
+        axes[1].axhline(limit, color="grey", linestyle="--", linewidth=1,
+                        label=f"cost limit {limit:g}")
     for axis, title in zip(axes, ("episode return", "episode cost"), strict=True):
         axis.set(xlabel="environment steps", ylabel=title, title=f"{env}: {title}")
         axis.legend(fontsize=8)

@@ -10,8 +10,8 @@ Fields relied on (all optional; whatever is missing is reported, never fatal):
   A Safety-Embedded MDP run counts *high-level* steps there (one per subgoal); its curves are
   put on low-level env steps by multiplying by k, taken from ``metrics.json["semdp"]["k"]`` or,
   for an unfinished run, from ``config.yaml``'s ``env.wrapper.k``.
-* ``config.yaml`` (only when ``metrics.json`` is missing): ``label``, ``algo_name``, ``env_name``,
-  ``seed``, to name an unfinished run.
+* ``config.yaml``: ``cost_limit`` (drawn in the cost curves) and, when ``metrics.json`` is
+  missing, ``label``, ``algo_name``, ``env_name``, ``seed``, to name an unfinished run.
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ class RunRecord:
         curves: ``{column: values}`` of ``progress.csv`` (NaN = empty cell); empty when absent.
         tradeoff: Fig. B.1 points, if any.
         problems: human-readable reasons this run is incomplete (empty when fully usable).
+        cost_limit: the run's top-level ``cost_limit`` from ``config.yaml``, if any.
     """
 
     path: Path
@@ -79,6 +80,7 @@ class RunRecord:
     curves: dict[str, FloatArray] = field(repr=False)
     tradeoff: tuple[TradeoffPoint, ...] = ()
     problems: tuple[str, ...] = ()
+    cost_limit: float | None = None
 
     @property
     def has_final_eval(self) -> bool:
@@ -118,6 +120,14 @@ def _as_float(value: Any) -> float | None:
     return float(value) if math.isfinite(float(value)) else None
 
 
+def _parse_float(text: Any) -> float | None:
+    """A finite float from a config value's text, else ``None``."""
+    try:
+        return _as_float(float(text))
+    except (TypeError, ValueError):
+        return None
+
+
 def _read_metrics(path: Path) -> tuple[dict[str, Any] | None, str | None]:
     file = path / METRICS_NAME
     if not file.is_file():
@@ -132,7 +142,8 @@ def _read_metrics(path: Path) -> tuple[dict[str, Any] | None, str | None]:
 
 
 def _read_config_names(path: Path) -> dict[str, Any]:
-    """``label``/``algo_name``/``env_name``/``seed`` from ``config.yaml`` (flat keys only)."""
+    """``label``/``algo_name``/``env_name``/``seed``/``cost_limit`` from ``config.yaml``
+    (top-level keys only)."""
     file = path / CONFIG_NAME
     names: dict[str, Any] = {}
     if not file.is_file():
@@ -141,7 +152,7 @@ def _read_config_names(path: Path) -> dict[str, Any]:
         if line.startswith((" ", "\t", "#")) or ":" not in line:
             continue
         key, _, value = line.partition(":")
-        if key in {"label", "algo_name", "env_name", "seed"} and value.strip():
+        if key in {"label", "algo_name", "env_name", "seed", "cost_limit"} and value.strip():
             names[key] = value.strip().strip("'\"")
     return names
 
@@ -225,15 +236,17 @@ def load_run(path: Path) -> RunRecord:
         curves["env_steps"] = (curves["env_steps"] * steps_per_decision(path, metrics)
                                + pretrain_steps(path))
     problems = [p for p in (metrics_problem, progress_problem) if p]
+    names = _read_config_names(path)
+    cost_limit = _parse_float(names.get("cost_limit"))
     if metrics is None:
-        names = _read_config_names(path)
         label = str(names.get("label") or algorithm_name(str(names.get("algo_name") or UNKNOWN)))
         env = env_name(str(names.get("env_name") or UNKNOWN))
         seed_text = names.get("seed")
         seed = int(seed_text) if isinstance(seed_text, str) and seed_text.isdigit() else None
         status = "no metrics.json" if metrics_problem == "no metrics.json" else "unreadable"
         return RunRecord(
-            path, status, None, label, env, seed, None, None, curves, (), tuple(problems)
+            path, status, None, label, env, seed, None, None, curves, (), tuple(problems),
+            cost_limit,
         )
     status = str(metrics.get("status") or "unknown")
     evaluation = metrics.get("eval") if isinstance(metrics.get("eval"), dict) else {}
@@ -256,6 +269,7 @@ def load_run(path: Path) -> RunRecord:
         curves=curves,
         tradeoff=_tradeoff(metrics),
         problems=tuple(problems),
+        cost_limit=cost_limit,
     )
 
 
