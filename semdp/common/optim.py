@@ -107,14 +107,12 @@ class FlatAdam(_OneGroupAdam):
         """One Adam step (``_single_tensor_adam``'s arithmetic) on the flat buffer."""
         if closure is not None:
             raise ValueError("FlatAdam.step takes no closure")
-        if any(p.data_ptr() != v.data_ptr() for p, v in zip(self._params, self._views,
-                                                           strict=True)):
-            self._attach()
+        flat, exp_avg, exp_avg_sq = self.buffers()
         grads = [p.grad for p in self._params]
         if any(g is None for g in grads):
             raise RuntimeError("FlatAdam needs a gradient for every parameter")
         grad = torch.cat([g.reshape(-1) for g in grads])
-        self.step_buffers(self._flat, grad, self._exp_avg, self._exp_avg_sq)
+        self.step_buffers(flat, grad, exp_avg, exp_avg_sq)
 
     def buffers(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """The flat parameters, ``exp_avg`` and ``exp_avg_sq`` (parameter order, in place)."""

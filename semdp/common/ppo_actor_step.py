@@ -51,6 +51,8 @@ class PPOActorStep:
         self.acts = [ACTIVATIONS[a] for a in activations]
         self.slopes = [ACTIVATION_GRADS[a] for a in activations]
         self.grad = torch.zeros(act_dim + sum(o * i + o for o, i in shapes))
+        #: ``log_std`` and per-layer ``(W, b)`` views of :attr:`grad`, filled by each step.
+        self.grad_views = self._views(self.grad)
 
     @classmethod
     def build(cls, actor: nn.Module, optimizer: torch.optim.Optimizer) -> PPOActorStep | None:
@@ -92,7 +94,7 @@ class PPOActorStep:
         """One Adam step on the minibatch; return ``(loss_pi, entropy)`` before the step."""
         flat, exp_avg, exp_avg_sq = self.optimizer.buffers()
         log_std, layers = self._views(flat)
-        g_log_std, grads = self._views(self.grad)
+        g_log_std, grads = self.grad_views
         batch = obs.shape[0]
         inputs, slopes = [obs], []
         h = obs
