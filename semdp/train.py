@@ -4,6 +4,8 @@
     semdp-train -m algo=ppo_lag,sp_ppo_lag seed=0,1,2      # joblib launcher, 2 jobs
     semdp-train algo=sac env=pendulum budget=ci
     semdp-train resume=outputs/train/<run dir>
+    semdp-train -m ... hydra.sweep.dir=<dir> resume=auto   # rerun a sweep: finished jobs are
+                                                           # skipped, unfinished ones continue
 
 Writes the run-directory contract: ``config.yaml`` (resolved), ``progress.csv``,
 ``checkpoints/last.pt`` and ``metrics.json``. A run that raises leaves its partial CSV and a
@@ -13,6 +15,7 @@ and the sweep goes on, in a single run it is re-raised.
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import traceback
@@ -90,11 +93,78 @@ def _choices(cfg: DictConfig) -> tuple[str, str]:
         return str(cfg.algo._target_).rsplit(".", 1)[-1], str(cfg.env.id)
 
 
+def _names(cfg: DictConfig) -> tuple[str, str]:
+    """(algorithm, env) names for metrics.json: the config's own, else Hydra's choices."""
+    if cfg.get("algo_name"):
+        return str(cfg.algo_name), str(cfg.env_name)
+    return _choices(cfg)
+
+
+def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(node, dict):
+        out: dict[str, Any] = {}
+        for key, value in node.items():
+            out.update(_flat(value, f"{prefix}{key}."))
+        return out
+    return {prefix[:-1]: node}
+
+
+def _config_differences(saved: DictConfig, wanted: DictConfig) -> list[str]:
+    """Dotted keys whose resolved values differ between two run configs (``resume`` aside)."""
+    a = _flat(OmegaConf.to_container(saved, resolve=True))
+    b = _flat(OmegaConf.to_container(wanted, resolve=True))
+    return sorted(k for k in a.keys() | b.keys() if k != "resume" and a.get(k) != b.get(k))
+
+
+def _auto_resume(cfg: DictConfig, run_dir: Path) -> str | dict[str, Any] | None:
+    """``resume=auto``: what to do with ``run_dir`` (a sweep job's directory, rerun).
+
+    Returns the finished run's metrics (nothing to do), the directory to resume (a checkpoint of
+    the same configuration), or None (nothing there yet: start afresh). A checkpoint of another
+    configuration is an error: the rerun would silently mix two experiments.
+    """
+    if not (run_dir / "config.yaml").is_file():
+        return None
+    saved = OmegaConf.load(run_dir / "config.yaml")
+    wanted = cfg.copy()
+    with open_dict(wanted):
+        wanted.algo_name, wanted.env_name = _names(cfg)
+    differences = _config_differences(saved, wanted)
+    if differences:
+        shown = ", ".join(f"{k} ({OmegaConf.select(saved, k)!r} there, "
+                          f"{OmegaConf.select(wanted, k)!r} now)" for k in differences[:3])
+        raise ConfigError(f"resume=auto: {run_dir} holds a run of another configuration: {shown}"
+                          f"{' ...' if len(differences) > 3 else ''}; pick another output "
+                          f"directory, or resume={run_dir} to continue it as it was saved")
+    metrics_path = run_dir / "metrics.json"
+    if metrics_path.is_file():
+        metrics = json.loads(metrics_path.read_text())
+        if metrics.get("status") == "completed":
+            return dict(metrics)
+    if not (run_dir / "checkpoints" / CHECKPOINT_NAME).is_file():
+        return None
+    return str(run_dir)
+
+
 def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
-    """Train (or resume) one run into ``run_dir``; return the final ``metrics.json`` content."""
+    """Train (or resume) one run into ``run_dir``; return the final ``metrics.json`` content.
+
+    ``resume``: null (a new run), a run directory (continue it with its saved config), or
+    ``auto`` (``run_dir`` itself: return its metrics if it finished, continue it if it has a
+    checkpoint of the same configuration, else start it).
+    """
     run_dir = Path(run_dir)
     resume = cfg.get("resume")
     threads = int(cfg.get("torch_threads", 1))
+    if resume == "auto":
+        found = _auto_resume(cfg, run_dir)
+        if isinstance(found, dict):
+            logger.info("resume=auto: %s already completed; nothing to do", run_dir)
+            return found
+        resume = found
+        if resume is None:
+            with open_dict(cfg):
+                cfg.resume = None
     if resume:
         run_dir = Path(resume)
         ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
@@ -106,9 +176,7 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
     validate_config(cfg)
     torch.set_num_threads(threads)
     run_dir.mkdir(parents=True, exist_ok=True)
-    algo_name, env_name = (cfg.get("algo_name"), cfg.get("env_name"))
-    if not algo_name:
-        algo_name, env_name = _choices(cfg)
+    algo_name, env_name = _names(cfg)
     meta = {"algo": algo_name, "env": env_name, "seed": int(cfg.seed)}
     if cfg.get("label"):  # method label for semdp-report (e.g. "Ours w/ gt")
         meta["label"] = str(cfg.label)

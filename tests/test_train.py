@@ -125,6 +125,41 @@ def test_train_resume_after_crash_matches_uninterrupted_run(
     assert resumed["status"] == "completed"
 
 
+def test_resume_auto_starts_skips_continues_and_refuses_another_config(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The rerun of a sweep (same hydra.sweep.dir, resume=auto): a finished job is left as it is,
+    # a crashed one continues to the uninterrupted run's numbers, another config is refused.
+    auto = functools.partial(tiny_train, "ppo_lag", "resume=auto")
+    reference = run(tiny_train("ppo_lag"), tmp_path / "ref")
+    fresh = run(auto(), tmp_path / "fresh")
+    assert fresh["eval"] == reference["eval"]
+    assert OmegaConf.load(tmp_path / "fresh" / "config.yaml").resume is None
+    original = PPOLag.train_epoch
+
+    def crash_in_epoch_3(self: PPOLag) -> dict[str, float]:
+        if self.epoch == 2:
+            raise RuntimeError("simulated crash")
+        return original(self)
+
+    monkeypatch.setattr(PPOLag, "train_epoch", crash_in_epoch_3)
+    with pytest.raises(RuntimeError, match="simulated crash"):
+        run(auto(), tmp_path / "crashed")
+    # Finished: returned as saved, nothing trains (train_epoch would crash at epoch 2 here).
+    before = (tmp_path / "fresh" / "progress.csv").read_text()
+    assert run(auto(), tmp_path / "fresh") == json.loads(
+        (tmp_path / "fresh" / "metrics.json").read_text())
+    assert (tmp_path / "fresh" / "progress.csv").read_text() == before
+    monkeypatch.setattr(PPOLag, "train_epoch", original)
+    for done in ("fresh", "crashed"):
+        with pytest.raises(ValueError, match=r"another configuration: seed \(0 there, 1 now\)"):
+            run(auto("seed=1"), tmp_path / done)
+    resumed = run(auto(), tmp_path / "crashed")
+    assert resumed["status"] == "completed" and resumed["eval"] == reference["eval"]
+    assert _without_timing(_rows(tmp_path / "crashed")) == _without_timing(
+        _rows(tmp_path / "ref"))
+
+
 @pytest.mark.parametrize(
     ("override", "key"),
     [("cost_limit=-1", "cost_limit"), ("total_steps=0", "total_steps"),
