@@ -115,6 +115,19 @@ def test_ppo_lag_run_evaluates_and_writes_an_mp4(runs: dict[str, Path]) -> None:
     assert on_disk["eval"] == metrics["eval"]
 
 
+def test_sampled_actions_replay_per_seed_and_differ_from_the_mean_action(
+    runs: dict[str, Path]
+) -> None:
+    args = ["episodes=2", "seed=3"]
+    _, mean = evaluate_run(runs["ppo_lag"], args)
+    _, sampled = evaluate_run(runs["ppo_lag"], [*args, "actions=sampled"])
+    _, again = evaluate_run(runs["ppo_lag"], ["actions=sampled", "seeds=[3,4]"])
+    assert mean["settings"]["actions"] == "mean" and sampled["settings"]["actions"] == "sampled"
+    assert sampled["label"] == "ppo_lag [eval actions=sampled]"
+    assert again["episodes"] == sampled["episodes"]  # torch seeded with each episode's seed
+    assert [e["return"] for e in sampled["episodes"]] != [e["return"] for e in mean["episodes"]]
+
+
 def test_transfer_variant_and_label_override(runs: dict[str, Path]) -> None:
     _, metrics = evaluate_run(runs["semdp"], ["variant=transfer", "episodes=2",
                                               "label=Ours on the variant"])
@@ -148,6 +161,7 @@ BAD: list[tuple[str, list[str], str]] = [
     ("ppo_lag", ["variant=transfer"], "variant=transfer: the transfer variant needs"),
     ("semdp", ["env.eval_wrapper.k=0"], "cannot build the run with these overrides"),
     ("semdp", ["novalue"], "cannot read 'novalue'"),
+    ("ppo_lag", ["actions=greedy"], "actions must be one of mean|sampled"),
 ]
 
 

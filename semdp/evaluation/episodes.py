@@ -1,4 +1,4 @@
-"""Play evaluation episodes with the mean action and summarise them.
+"""Play evaluation episodes (the mean action, or the sampled one) and summarise them.
 
 Per episode: reset seed, return, cost, length (low-level env steps) and, at episode end,
 ``success`` when the env reports it. For a Safety-Embedded MDP run also the plan statistics its
@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import torch
 
 from semdp.embedded.perception import perceive_obstacles
 from semdp.evaluation.environment import EvaluationEnv
@@ -24,8 +25,15 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def play_episode(algo: Any, ev: EvaluationEnv, seed: int, record: bool = False) -> dict[str, Any]:
-    """One episode from ``reset(seed=seed)``; ``record`` fills ``ev.recorder.frames``."""
+def play_episode(algo: Any, ev: EvaluationEnv, seed: int, record: bool = False,
+                 sampled: bool = False) -> dict[str, Any]:
+    """One episode from ``reset(seed=seed)``; ``record`` fills ``ev.recorder.frames``.
+
+    ``sampled``: act with the stochastic policy's samples (torch's generator seeded with
+    ``seed``, so an episode replays exactly) instead of its mean action.
+    """
+    if sampled:
+        torch.manual_seed(seed)
     if ev.recorder is not None:
         ev.recorder.active = record
         ev.recorder.frames = []
@@ -41,7 +49,7 @@ def play_episode(algo: Any, ev: EvaluationEnv, seed: int, record: bool = False) 
             ev.recorder.perceived = perceive_obstacles(base, np.asarray(obs), semdp.perception,
                                                        semdp.obstacle_kinds)
             ev.recorder.clearance = getattr(semdp.planner, "clearance", None)
-        action = algo.predict(np.asarray(obs)[None], deterministic=True)[0]
+        action = algo.predict(np.asarray(obs)[None], deterministic=not sampled)[0]
         obs, reward, terminated, truncated, info = ev.env.step(action)
         ret += float(reward)
         cost += float(info["cost"])

@@ -29,10 +29,13 @@ SHORTHANDS: dict[str, str] = {
     "lambda": "fixed | adaptive: the LM planner's lambda schedule",
     "perception": "lidar | gt: the evaluation planner's obstacles",
     "variant": "transfer: the perturbed Push variant of semdp/experiments/transfer.py",
+    "actions": "mean (default, as the training runs' evaluations) | sampled: the stochastic "
+               "policy's actions, as in training episodes (torch seeded per episode)",
 }
 PERCEPTIONS = ("lidar", "gt")
 LAMBDAS = ("fixed", "adaptive")
 VARIANTS = ("transfer",)
+ACTIONS = ("mean", "sampled")
 
 
 @dataclass(frozen=True)
@@ -59,13 +62,14 @@ class EvalOptions:
     lambda_: str | None = None
     perception: str | None = None
     variant: str | None = None
+    actions: str = "mean"
     overrides: tuple[ConfigOverride, ...] = ()
     arguments: tuple[str, ...] = field(default=())
 
     @property
     def changes(self) -> list[str]:
         """The arguments that change the evaluated policy or env (not episodes, seeds, video)."""
-        keep = {"planner", "clearance", "lambda", "perception", "variant"}
+        keep = {"planner", "clearance", "lambda", "perception", "variant", "actions"}
         return [a for a in self.arguments
                 if a.lstrip("+").split("=", 1)[0] in keep | {o.key for o in self.overrides}]
 
@@ -115,6 +119,8 @@ def _shorthand(key: str, value: Any) -> tuple[str, Any]:
         return "lambda_", _choice(key, value, LAMBDAS)
     if key == "perception":
         return key, _choice(key, value, PERCEPTIONS)
+    if key == "actions":
+        return key, _choice(key, value, ACTIONS)
     return key, _choice(key, value, VARIANTS)
 
 

@@ -105,7 +105,8 @@ def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[
                               options.video_every)
     episodes, frames = [], []
     for i, seed in enumerate(seeds):
-        episodes.append(play_episode(algo, ev, seed, record=options.video and i == 0))
+        episodes.append(play_episode(algo, ev, seed, record=options.video and i == 0,
+                                     sampled=options.actions == "sampled"))
         if i == 0 and ev.recorder is not None:
             frames = ev.recorder.frames
     ev.env.close()
@@ -139,7 +140,7 @@ def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[
         "evaluation_of": str(run_dir),
         "arguments": list(arguments),
         "settings": {
-            **ev.settings, "seeds": seeds,
+            **ev.settings, "seeds": seeds, "actions": options.actions,
             "planner": OmegaConf.to_container(planner) if OmegaConf.is_config(planner) else None,
             "perception": wrapper.get("perception") if OmegaConf.is_dict(wrapper) else None,
         },
