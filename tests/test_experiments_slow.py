@@ -18,13 +18,13 @@ pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
 SEMDP_METHODS = ["Ours", "CPO", "PPO Lag", "TRPO Lag"]
-#: preset -> (report columns, report envs, extra report files)
+#: preset -> (report columns, report envs, extra report files): names as a reader expects them
+#: (``curves_<env>.png`` with spaces and slashes as ``_``).
 EXPECTED: dict[str, tuple[list[str], list[str], list[str]]] = {
-    "sp_driving": (["ppo_lag", "sp_ppo_lag"],
-                   [f"drive_{task}_v{v}" for task in ("circle", "trajectory")
-                    for v in ("2.0", "6.0")], []),
-    "sp_safety_gym": (["ppo_lag", "sp_ppo_lag"],
-                      [f"point_{t}{lv}" for t in ("goal", "button", "push") for lv in (1, 2)], []),
+    "sp_driving": (["PPO-Lag", "SP-PPO-Lag"],
+                   [f"{task} {v} m/s" for task in ("Circle", "Trajectory") for v in (2, 6)], []),
+    "sp_safety_gym": (["PPO-Lag", "SP-PPO-Lag"],
+                      [f"Point{t}{lv}" for t in ("Goal", "Button", "Push") for lv in (1, 2)], []),
     "semdp_push": (SEMDP_METHODS, ["MassPush1", "PointPush1", "CarPush1"], []),
     "semdp_ablations": (["Ours", "PPO Lag + SAC", "SAC + PPO Lag", "Ours w/ gt", "Ours w/o Lag"],
                         ["MassPush1", "PointPush1", "CarPush1"], []),
@@ -80,7 +80,7 @@ def test_preset_ci_sweep_and_report(name: str, tmp_path: Path) -> None:
     assert sorted(columns) == sorted(methods)
     assert set(rows) == {(env, metric) for env in envs for metric in ("reward", "cost")}
     for env in envs:
-        assert (report / f"curves_{env}.png").is_file()
+        assert (report / f"curves_{env.replace(' m/s', '_m_s').replace(' ', '_')}.png").is_file()
     for file in extra:
         assert (report / file).is_file()
     statuses = {}
