@@ -8,7 +8,9 @@ Finds every run directory below ``SWEEP_DIR`` (one holding ``metrics.json`` and/
 * ``table.md`` -- Table 3.1 layout: rows environment x {reward, cost}, columns methods, cells
   mean ± standard error over seeds of the final evaluation; with ``--compare A,B`` the
   difference A − B per environment ± its standard error and in standard errors
-  (:mod:`semdp.reporting.compare`); then one line per failed or unfinished run naming it and why;
+  (:mod:`semdp.reporting.compare`); with ``--late F`` the training episodes over the last
+  fraction F of the epochs, with ``--at S1,S2`` the same for the runs cut at S env steps (what an
+  earlier budget would have shown); then one line per failed or unfinished run naming it and why;
 * ``curves_<env>.png`` -- episode return and cost vs env steps, one curve per method,
   Savitzky-Golay smoothed, shaded ±1 standard error over seeds;
 * ``tradeoff_<env>.png`` -- Fig. B.1 (reward vs cost over ε') when runs carry ``tradeoff``.
@@ -17,6 +19,7 @@ Example::
 
     semdp-report outputs/multirun/2026-11-22_10-00-00 --out outputs/reference/semdp_push
     semdp-report outputs/multirun/sp_safety_gym/laptop/<time> --compare SP-PPO-Lag,PPO-Lag
+    semdp-report outputs/multirun/sp_driving/laptop/<time> --late 0.1 --at 150000,500000
 """
 
 from __future__ import annotations
@@ -62,6 +65,7 @@ def build_table(
     order: list[str] | None = None,
     compare: tuple[str, str] | None = None,
     late: float = 0.0,
+    at: tuple[float, ...] = (),
 ) -> str:
     """Markdown of Table 3.1 (mean ± SE over seeds) plus the list of incomplete runs.
 
@@ -75,9 +79,13 @@ def build_table(
         late: with ``0 < late <= 1``, a second table (and differences) of the training
             episodes' return and cost averaged over the last ``late`` fraction of each completed
             run's epochs (the stochastic policy, what the thesis' training curves show).
+        at: env-step marks: for each, the same table as ``late`` (its fraction, else 10 %) over
+            the epochs up to that many env steps, i.e. what a run stopped there would show
+            (runs that never reached it are left out).
 
     Raises:
-        ValueError: if a label of ``compare`` names no method of the runs.
+        ValueError: if a label of ``compare`` names no method of the runs, or a mark is not
+            positive.
     """
     usable = [run for run in runs if run.has_final_eval]
     # Runs known only by their directory (no metrics.json, no config.yaml) get no column or row of
@@ -87,6 +95,9 @@ def build_table(
     envs = sorted({run.env for run in named})
     if not 0.0 <= late <= 1.0:
         raise ValueError(f"late must be in [0, 1], got {late}")
+    bad = [mark for mark in at if not (math.isfinite(mark) and mark > 0)]
+    if bad:
+        raise ValueError(f"--at: env-step marks must be > 0, got {bad[0]}")
     pair = None
     if compare is not None:
         pair = [name if name in labels else algorithm_name(name) for name in compare]
@@ -119,6 +130,19 @@ def build_table(
         if pair is not None:
             lines += difference_lines(late_values, envs, pair[0], pair[1], digits,
                                       title="training episodes")
+    fraction = late if late > 0 else 0.1
+    for mark in at:
+        mark_values = late_training_values(usable, fraction, until=mark)
+        lines += [
+            f"## Training episodes at {mark:g} env steps", "",
+            f"As the previous table for runs stopped at {mark:g} env steps: `progress.csv` "
+            f"ep_return / ep_cost over the last {fraction:.0%} of the epochs up to that step, "
+            "then mean ± standard error over seeds.", "",
+            *_value_table(mark_values, envs, labels, digits),
+        ]  # fmt: skip
+        if pair is not None:
+            lines += difference_lines(mark_values, envs, pair[0], pair[1], digits,
+                                      title=f"training episodes at {mark:g} env steps")
     lines += [f"Runs found: {len(runs)}; with a final evaluation: {len(usable)}.", ""]
     incomplete = [run for run in runs if run.problems]
     if incomplete:
@@ -150,6 +174,23 @@ def parse_compare(text: str) -> tuple[str, str] | None:
     return parts[0], parts[1]
 
 
+def parse_marks(text: str) -> tuple[float, ...]:
+    """``"150000,1e6"`` -> ``(150000.0, 1000000.0)``; empty -> ``()``.
+
+    Raises:
+        ValueError: for a mark that is not a number.
+    """
+    marks = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        try:
+            marks.append(float(part))
+        except ValueError:
+            raise ValueError(f"--at takes env-step numbers like 150000,1e6, got {part!r}") from None
+    return tuple(marks)
+
+
 def _value_table(
     values: dict[tuple[str, str, str], list[float]], envs: list[str], labels: list[str],
     digits: int,
@@ -167,17 +208,29 @@ def _value_table(
 
 
 def late_training_values(
-    runs: list[RunRecord], fraction: float
+    runs: list[RunRecord], fraction: float, until: float | None = None
 ) -> dict[tuple[str, str, str], list[float]]:
     """Per (env, label, metric) the runs' mean training-episode return/cost over the last
     ``fraction`` of their epochs (at least one; empty cells skipped; runs without a training
-    episode there are left out)."""
+    episode there are left out). ``until``: only the epochs up to that many env steps (the
+    curves' ``env_steps``), as if the run had stopped there; runs that never reached it are
+    left out."""
     out: dict[tuple[str, str, str], list[float]] = defaultdict(list)
     for run in runs:
+        keep = None
+        if until is not None:
+            steps = run.curves.get("env_steps")
+            if steps is None or steps.size == 0 or float(np.nanmax(steps)) < until:
+                continue
+            keep = steps <= until
         for metric, column in (("reward", "ep_return"), ("cost", "ep_cost")):
             series = run.curves.get(column)
             if series is None or series.size == 0:
                 continue
+            if keep is not None:
+                series = series[keep[: series.size]]
+                if series.size == 0:
+                    continue
             tail = series[-max(1, math.ceil(fraction * series.size)):]
             tail = tail[~np.isnan(tail)]
             if tail.size:
@@ -196,6 +249,7 @@ def write_report(
     order: list[str] | None = None,
     compare: tuple[str, str] | None = None,
     late: float = 0.0,
+    at: tuple[float, ...] = (),
 ) -> list[Path]:
     """Write ``table.md``, the curve PNGs and any trade-off PNGs; return the written paths.
 
@@ -209,7 +263,7 @@ def write_report(
         raise ValueError(f"no run directories (metrics.json or progress.csv) found below {root}")
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / TABLE_NAME]
-    written[0].write_text(build_table(runs, root, digits, order, compare, late))
+    written[0].write_text(build_table(runs, root, digits, order, compare, late, at))
     colours = method_colours(runs)
     for env in sorted({run.env for run in runs}):
         curves = out_dir / f"curves_{_file_safe(env)}.png"
@@ -241,12 +295,17 @@ def main(argv: list[str] | None = None) -> None:
         "--late", type=float, default=0.0,
         help="also tabulate the training episodes over this last fraction of the epochs",
     )
+    parser.add_argument(
+        "--at", default="",
+        help="comma-separated env-step marks (e.g. 150000): the training-episode table of "
+        "runs stopped there (the --late fraction, else 10%%, of the epochs up to the mark)",
+    )
     args = parser.parse_args(argv)
     out_dir = args.out if args.out is not None else args.sweep_dir / "report"
     try:
         order = [label.strip() for label in args.order.split(",") if label.strip()]
         written = write_report(args.sweep_dir, out_dir, args.digits, order,
-                               parse_compare(args.compare), args.late)
+                               parse_compare(args.compare), args.late, parse_marks(args.at))
     except ValueError as exc:
         sys.exit(f"semdp-report: {exc}")
     print(written[0].read_text())

@@ -342,6 +342,32 @@ def test_late_training_table_averages_the_last_epochs(sweep: Path) -> None:
         build_table(load_runs(sweep), sweep, late=1.5)
 
 
+def test_training_table_at_a_step_mark_is_that_of_runs_stopped_there(sweep: Path) -> None:
+    # Up to 20,000 env steps: epochs 1-20, the last 10 % are epochs 19-20 (ep_return mean
+    # 19.5 + offset): semdp 19.5, 20.5, 21.5 -> 20.50 ± 0.58; PPO-Lag 19.50 (2 runs). No run
+    # reached 40,000 steps: every cell of that table is empty.
+    table = build_table(load_runs(sweep), sweep, at=(20000.0, 40000.0),
+                        compare=("semdp", "ppo_lag"))
+    section = table.split("## Training episodes at 20000 env steps")[1].split("## Training")[0]
+    rows = {tuple(c.strip() for c in line.strip("|").split("|")[:2]):
+            [c.strip() for c in line.strip("|").split("|")[2:]]
+            for line in section.splitlines() if line.startswith("| push1 |")
+            and line.count("|") == 7}
+    assert rows[("push1", "reward")][2:] == ["19.50 ± 0.00 (n=2)", "20.50 ± 0.58"]
+    assert "## semdp − PPO-Lag (training episodes at 20000 env steps)" in section
+    unreached = table.split("## Training episodes at 40000 env steps")[1]
+    assert all(cell.strip() == "–" for line in unreached.splitlines()
+               if line.startswith("| push1 |") and line.count("|") == 7
+               for cell in line.strip("|").split("|")[2:])
+    with pytest.raises(ValueError, match="marks must be > 0"):
+        build_table(load_runs(sweep), sweep, at=(0.0,))
+
+
+def test_cli_at_rejects_a_mark_that_is_not_a_number(sweep: Path, tmp_path: Path) -> None:
+    with pytest.raises(SystemExit, match="env-step numbers"):
+        main([str(sweep), "--out", str(tmp_path / "r"), "--at", "150k"])
+
+
 def test_cost_limit_is_read_from_config_and_drawn_only_when_shared(tmp_path: Path) -> None:
     from semdp.reporting.plots import shared_cost_limit
 

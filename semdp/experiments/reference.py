@@ -21,7 +21,7 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
-from semdp.report import parse_compare, write_report
+from semdp.report import parse_compare, parse_marks, write_report
 
 MACHINE = ("2 CPU cores (x86_64 VM), no GPU, 1 torch thread per run, `hydra.launcher.n_jobs=1`; "
            "the machine was shared with other jobs (several helpers training and testing), so "
@@ -61,10 +61,11 @@ def sweep_summary(sweep_dir: Path) -> dict[str, Any]:
 
 def write_reference(sweep_dir: Path, out_dir: Path, order: list[str] | None = None,
                     note: str = "", command: str = "",
-                    compare: tuple[str, str] | None = None, late: float = 0.0) -> Path:
+                    compare: tuple[str, str] | None = None, late: float = 0.0,
+                    at: tuple[float, ...] = ()) -> Path:
     """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path."""
     sweep_dir, out_dir = Path(sweep_dir), Path(out_dir)
-    write_report(sweep_dir, out_dir, order=order, compare=compare, late=late)
+    write_report(sweep_dir, out_dir, order=order, compare=compare, late=late, at=at)
     summary = sweep_summary(sweep_dir)
     table = (out_dir / "table.md").read_text().replace(str(sweep_dir.resolve()), "<sweep dir>")
     (out_dir / "table.md").write_text(table)
@@ -105,10 +106,12 @@ def main(argv: list[str] | None = None) -> None:
                         help="two method labels A,B: add the differences A - B")
     parser.add_argument("--late", type=float, default=0.0,
                         help="also tabulate the training episodes over this last fraction")
+    parser.add_argument("--at", default="",
+                        help="env-step marks: the training-episode table of runs stopped there")
     args = parser.parse_args(argv)
     order = [s.strip() for s in args.order.split(",") if s.strip()]
     path = write_reference(args.sweep_dir, args.out_dir, order, args.note, args.command,
-                           parse_compare(args.compare), args.late)
+                           parse_compare(args.compare), args.late, parse_marks(args.at))
     print(path.read_text())
 
 
