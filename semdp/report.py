@@ -1,9 +1,10 @@
-"""``semdp-report SWEEP_DIR [--out DIR]``: tables and figures from a sweep (docs/design.md).
+"""``semdp-report SWEEP_DIR [SWEEP_DIR ...] [--out DIR]``: tables and figures from sweeps
+(docs/design.md).
 
-Finds every run directory below ``SWEEP_DIR`` (one holding ``metrics.json`` and/or
+Finds every run directory below each ``SWEEP_DIR`` (one holding ``metrics.json`` and/or
 ``progress.csv``; see :mod:`semdp.reporting.runs` for the fields used), groups runs by method label
 (``metrics["label"]``, else ``metrics["algo"]``) and environment, and writes into ``--out``
-(default ``SWEEP_DIR/report``):
+(default ``<first SWEEP_DIR>/report``):
 
 * ``table.md`` -- Table 3.1 layout: rows environment x {reward, cost}, columns methods, cells
   mean ± standard error over seeds of the final evaluation; with ``--compare A,B`` the
@@ -26,9 +27,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 import sys
 from collections import defaultdict
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -243,7 +246,7 @@ def _file_safe(name: str) -> str:
 
 
 def write_report(
-    root: Path,
+    root: Path | Sequence[Path],
     out_dir: Path,
     digits: int = 2,
     order: list[str] | None = None,
@@ -253,14 +256,26 @@ def write_report(
 ) -> list[Path]:
     """Write ``table.md``, the curve PNGs and any trade-off PNGs; return the written paths.
 
+    ``root``: a sweep directory, or several (e.g. one sweep per seed, or sweeps of several
+    sessions): their runs are reported together, each run once.
+
     Raises:
-        ValueError: if ``root`` is not a directory or holds no run directory.
+        ValueError: if a root is not a directory or none holds a run directory.
     """
-    root = Path(root).resolve()
+    roots = [Path(r).resolve() for r in ([root] if isinstance(root, str | Path) else root)]
+    if not roots:
+        raise ValueError("no sweep directory given")
     out_dir = Path(out_dir).resolve()
-    runs = [run for run in load_runs(root) if not run.path.is_relative_to(out_dir)]
+    runs, seen = [], set()
+    for sweep in roots:
+        for run in load_runs(sweep):
+            if run.path not in seen and not run.path.is_relative_to(out_dir):
+                seen.add(run.path)
+                runs.append(run)
+    root = roots[0] if len(roots) == 1 else Path(os.path.commonpath(roots))
     if not runs:
-        raise ValueError(f"no run directories (metrics.json or progress.csv) found below {root}")
+        raise ValueError("no run directories (metrics.json or progress.csv) found below "
+                         + ", ".join(map(str, roots)))
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / TABLE_NAME]
     written[0].write_text(build_table(runs, root, digits, order, compare, late, at))
@@ -282,7 +297,8 @@ def main(argv: list[str] | None = None) -> None:
         description="Tables (mean ± SE over seeds), training curves and the ε' trade-off "
         "scatter from a sweep's run directories.",
     )
-    parser.add_argument("sweep_dir", type=Path, help="sweep or parent directory of run dirs")
+    parser.add_argument("sweep_dir", type=Path, nargs="+",
+                        help="sweep or parent directory of run dirs (several: reported together)")
     parser.add_argument("--out", type=Path, default=None, help="output dir (default SWEEP/report)")
     parser.add_argument("--digits", type=int, default=2, help="decimals in table cells")
     parser.add_argument(
@@ -301,7 +317,7 @@ def main(argv: list[str] | None = None) -> None:
         "runs stopped there (the --late fraction, else 10%%, of the epochs up to the mark)",
     )
     args = parser.parse_args(argv)
-    out_dir = args.out if args.out is not None else args.sweep_dir / "report"
+    out_dir = args.out if args.out is not None else args.sweep_dir[0] / "report"
     try:
         order = [label.strip() for label in args.order.split(",") if label.strip()]
         written = write_report(args.sweep_dir, out_dir, args.digits, order,

@@ -272,6 +272,31 @@ def test_reference_reads_the_command_and_summarises_the_sweep(tmp_path: Path) ->
         sweep_command(tmp_path / "0_a")
 
 
+def test_reference_of_several_sweeps_records_each_command_and_adds_the_counts(
+    tmp_path: Path
+) -> None:
+    from semdp.experiments.reference import write_reference
+
+    sweeps = []
+    for seed, wall in ((0, 60.0), (1, 90.0)):
+        sweep = tmp_path / f"s{seed}"
+        (sweep / "0_run").mkdir(parents=True)
+        (sweep / "multirun.yaml").write_text(
+            f"hydra:\n  overrides:\n    task: [experiment=sp_driving, seed={seed}]\n"
+            "    hydra: [hydra.mode=MULTIRUN]\n")
+        (sweep / "0_run" / "metrics.json").write_text(json.dumps(
+            {"status": "completed", "wall_time_s": wall, "algo": "ppo_lag", "env": "x",
+             "seed": seed, "eval": {"return_mean": 1.0 + seed, "cost_mean": 0.0}}))
+        sweeps.append(sweep)
+    text = write_reference(sweeps, tmp_path / "ref").read_text()
+    assert "semdp-train -m experiment=sp_driving seed=0\nsemdp-train -m experiment=sp_driving " \
+        "seed=1\n" in text
+    assert "- Runs: 2 (2 completed)" in text and "summed training wall time of the runs: 2.5 min" \
+        in text and "summed over the 2 sweeps" in text
+    assert "| x | reward | 1.50 ± 0.50 |" in text
+    assert str(tmp_path / "s0") not in text and "### Results: <sweep dirs>" in text
+
+
 @pytest.mark.parametrize(
     ("launcher", "plugin", "target"),
     [("local", "hydra_plugins.hydra_joblib_launcher", "JoblibLauncher"),

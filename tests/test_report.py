@@ -368,6 +368,26 @@ def test_cli_at_rejects_a_mark_that_is_not_a_number(sweep: Path, tmp_path: Path)
         main([str(sweep), "--out", str(tmp_path / "r"), "--at", "150k"])
 
 
+def test_several_sweeps_are_reported_together_each_run_once(tmp_path: Path) -> None:
+    # One sweep per seed (as long runs are launched): semdp returns 5 and 6 in the first, 7 in
+    # the second -> 6.00 ± 0.58 over 3 seeds; a sweep given twice and a run dir inside a given
+    # sweep add nothing.
+    first, second = tmp_path / "s01", tmp_path / "s2"
+    for seed, ret in enumerate((5.0, 6.0)):
+        _write_run(first / f"{seed}", algo="semdp", env="push1", seed=seed, eval_return=ret,
+                   eval_cost=0.0)  # fmt: skip
+    _write_run(second / "0", algo="semdp", env="push1", seed=2, eval_return=7.0, eval_cost=0.0)
+    write_report([first, second, first, first / "0"], tmp_path / "out")
+    table = (tmp_path / "out" / TABLE_NAME).read_text()
+    assert "| push1 | reward | 6.00 ± 0.58 |" in table
+    assert "Runs found: 3; with a final evaluation: 3." in table
+    main([str(first), str(second), "--out", str(tmp_path / "cli")])
+    assert (tmp_path / "cli" / TABLE_NAME).read_text().replace(str(tmp_path / "cli"), "") == \
+        table.replace(str(tmp_path / "out"), "")
+    with pytest.raises(SystemExit, match="not a directory"):
+        main([str(first), str(tmp_path / "nope"), "--out", str(tmp_path / "bad")])
+
+
 def test_cost_limit_is_read_from_config_and_drawn_only_when_shared(tmp_path: Path) -> None:
     from semdp.reporting.plots import shared_cost_limit
 

@@ -1,6 +1,7 @@
 """Turn a finished sweep into a committed reference folder (outputs/reference/README.md).
 
     python -m semdp.experiments.reference <sweep dir> outputs/reference/<preset> [--order ...]
+    python -m semdp.experiments.reference <sweep s0> <sweep s1> <sweep s2> outputs/reference/<preset>
 
 Writes the ``semdp-report`` table and figures into the folder (no checkpoints or run
 directories) and ``COMMAND.md``: the exact command (from the sweep's ``multirun.yaml``), the
@@ -59,26 +60,52 @@ def sweep_summary(sweep_dir: Path) -> dict[str, Any]:
             "finished": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(end))}
 
 
-def write_reference(sweep_dir: Path, out_dir: Path, order: list[str] | None = None,
-                    note: str = "", command: str = "",
+def combined_summary(sweep_dirs: list[Path]) -> dict[str, Any]:
+    """:func:`sweep_summary` of several sweeps: counts and times added, the last finish."""
+    parts = [sweep_summary(sweep) for sweep in sweep_dirs]
+    statuses: dict[str, int] = {}
+    for part in parts:
+        for status, count in part["statuses"].items():
+            statuses[status] = statuses.get(status, 0) + count
+    return {"runs": sum(p["runs"] for p in parts), "statuses": statuses,
+            "run_wall_s": sum(p["run_wall_s"] for p in parts),
+            "sweep_wall_s": sum(p["sweep_wall_s"] for p in parts),
+            "finished": max(p["finished"] for p in parts)}
+
+
+def write_reference(sweep_dir: Path | list[Path], out_dir: Path,
+                    order: list[str] | None = None, note: str = "", command: str = "",
                     compare: tuple[str, str] | None = None, late: float = 0.0,
                     at: tuple[float, ...] = ()) -> Path:
-    """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path."""
-    sweep_dir, out_dir = Path(sweep_dir), Path(out_dir)
-    write_report(sweep_dir, out_dir, order=order, compare=compare, late=late, at=at)
-    summary = sweep_summary(sweep_dir)
-    table = (out_dir / "table.md").read_text().replace(str(sweep_dir.resolve()), "<sweep dir>")
+    """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path.
+
+    ``sweep_dir``: one sweep, or several reported together (their commands, from each
+    ``multirun.yaml``, one per line; their run counts and wall times added).
+    """
+    sweeps = [Path(d) for d in (sweep_dir if isinstance(sweep_dir, list) else [sweep_dir])]
+    out_dir = Path(out_dir)
+    write_report(sweeps, out_dir, order=order, compare=compare, late=late, at=at)
+    summary = combined_summary(sweeps)
+    table = (out_dir / "table.md").read_text()
+    for sweep in sweeps:
+        table = table.replace(str(sweep.resolve()), "<sweep dir>")
+    if len(sweeps) > 1:
+        table = table.replace(os.path.commonpath([str(d.resolve()) for d in sweeps]),
+                              "<sweep dirs>")
     (out_dir / "table.md").write_text(table)
     status = ", ".join(f"{n} {s}" for s, n in sorted(summary["statuses"].items()))
+    dirs = "<sweep dir>" if len(sweeps) == 1 else " ".join(f"<sweep {i}>" for i in
+                                                            range(1, len(sweeps) + 1))
+    span = ("first job start to last metrics.json" if len(sweeps) == 1 else
+            f"summed over the {len(sweeps)} sweeps, each first job start to last metrics.json")
     text = [
         f"# Reference: `{out_dir.name}`", "",
         "Produced from the repository root with:", "", "```bash",
-        command or sweep_command(sweep_dir),
-        f"semdp-report <sweep dir>   # or: python -m semdp.experiments.reference <sweep dir> "
+        command or "\n".join(sweep_command(sweep) for sweep in sweeps),
+        f"semdp-report {dirs}   # or: python -m semdp.experiments.reference {dirs} "
         f"{out_dir.as_posix()}", "```", "",
         f"- Runs: {summary['runs']} ({status}); finished {summary['finished']}.",
-        f"- Sweep wall time: {summary['sweep_wall_s'] / 60:.1f} min (first job start to last "
-        f"metrics.json); summed training wall time of the runs: "
+        f"- Sweep wall time: {summary['sweep_wall_s'] / 60:.1f} min ({span}); summed training wall time of the runs: "
         f"{summary['run_wall_s'] / 60:.1f} min (final evaluations and post-training hooks "
         "are in the sweep time only).",
         f"- Machine: {MACHINE} ({platform.python_implementation()} "
@@ -96,7 +123,8 @@ def main(argv: list[str] | None = None) -> None:
     """CLI entry point."""
     parser = argparse.ArgumentParser(prog="python -m semdp.experiments.reference",
                                      description=__doc__.split("\n\n")[0])
-    parser.add_argument("sweep_dir", type=Path)
+    parser.add_argument("sweep_dir", type=Path, nargs="+",
+                        help="one sweep directory, or several reported together")
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--order", default="", help="comma-separated method labels first")
     parser.add_argument("--note", default="", help="a paragraph added to COMMAND.md")
@@ -110,7 +138,7 @@ def main(argv: list[str] | None = None) -> None:
                         help="env-step marks: the training-episode table of runs stopped there")
     args = parser.parse_args(argv)
     order = [s.strip() for s in args.order.split(",") if s.strip()]
-    path = write_reference(args.sweep_dir, args.out_dir, order, args.note, args.command,
+    path = write_reference(list(args.sweep_dir), args.out_dir, order, args.note, args.command,
                            parse_compare(args.compare), args.late, parse_marks(args.at))
     print(path.read_text())
 
