@@ -401,3 +401,13 @@ def test_cost_limit_is_read_from_config_and_drawn_only_when_shared(tmp_path: Pat
     assert [run.cost_limit for run in runs] == [25.0, 25.0, None]
     assert shared_cost_limit(runs[:2]) == 25.0
     assert shared_cost_limit(runs) is None  # one run's limit unknown: no line
+    # SAC ("Ours") beside the constrained runs: its config's cost_limit is not a limit it was
+    # trained with (its algo block has none), so it neither draws nor blocks the line.
+    sac = _write_run(tmp_path / "sac", algo="sac", env="goal1", seed=0, eval_return=1.0,
+                     eval_cost=0.0)
+    (sac / "config.yaml").write_text("algo:\n  lr: 0.001\n  nested:\n    x: 1\n"
+                                     "cost_limit: 25.0\nseed: 0\n")
+    ours = load_run(sac)
+    assert ours.cost_limit == 25.0 and ours.unconstrained and not runs[0].unconstrained
+    assert shared_cost_limit([*runs[:2], ours]) == 25.0
+    assert shared_cost_limit([ours]) is None

@@ -92,9 +92,10 @@ def pretrain_offset(run: RunRecord) -> int:
 
 
 def shared_cost_limit(runs: list[RunRecord]) -> float | None:
-    """The cost limit all ``runs`` were trained with, or ``None`` if it is unknown for some run
-    or differs between them (then no line is drawn)."""
-    limits = {run.cost_limit for run in runs}
+    """The cost limit all constrained ``runs`` were trained with, or ``None`` if it is unknown
+    for some run, differs between them, or no run is constrained (then no line is drawn).
+    Unconstrained runs (SAC's "Ours", PPO) have no limit of their own and do not count."""
+    limits = {run.cost_limit for run in runs if not run.unconstrained}
     if len(limits) != 1:
         return None
     return limits.pop()

@@ -67,6 +67,8 @@ class RunRecord:
         tradeoff: Fig. B.1 points, if any.
         problems: human-readable reasons this run is incomplete (empty when fully usable).
         cost_limit: the run's top-level ``cost_limit`` from ``config.yaml``, if any.
+        unconstrained: ``config.yaml``'s ``algo`` has no ``cost_limit`` (SAC, PPO, TRPO: the
+            top-level limit is not what they were trained with).
     """
 
     path: Path
@@ -81,6 +83,7 @@ class RunRecord:
     tradeoff: tuple[TradeoffPoint, ...] = ()
     problems: tuple[str, ...] = ()
     cost_limit: float | None = None
+    unconstrained: bool = False
 
     @property
     def has_final_eval(self) -> bool:
@@ -143,15 +146,22 @@ def _read_metrics(path: Path) -> tuple[dict[str, Any] | None, str | None]:
 
 def _read_config_names(path: Path) -> dict[str, Any]:
     """``label``/``algo_name``/``env_name``/``seed``/``cost_limit`` from ``config.yaml``
-    (top-level keys only)."""
+    (top-level keys), and ``algo_cost_limit``: whether the ``algo`` block has a ``cost_limit``
+    key at any depth (the constrained algorithms' resolved limit)."""
     file = path / CONFIG_NAME
     names: dict[str, Any] = {}
     if not file.is_file():
         return names
+    in_algo = False
+    names["algo_cost_limit"] = False
     for line in file.read_text(errors="replace").splitlines():
+        if in_algo and line.startswith((" ", "\t")):
+            names["algo_cost_limit"] |= line.strip().startswith("cost_limit:")
+            continue
         if line.startswith((" ", "\t", "#")) or ":" not in line:
             continue
         key, _, value = line.partition(":")
+        in_algo = key == "algo"
         if key in {"label", "algo_name", "env_name", "seed", "cost_limit"} and value.strip():
             names[key] = value.strip().strip("'\"")
     return names
@@ -238,6 +248,7 @@ def load_run(path: Path) -> RunRecord:
     problems = [p for p in (metrics_problem, progress_problem) if p]
     names = _read_config_names(path)
     cost_limit = _parse_float(names.get("cost_limit"))
+    unconstrained = names.get("algo_cost_limit") is False
     if metrics is None:
         label = str(names.get("label") or algorithm_name(str(names.get("algo_name") or UNKNOWN)))
         env = env_name(str(names.get("env_name") or UNKNOWN))
@@ -246,7 +257,7 @@ def load_run(path: Path) -> RunRecord:
         status = "no metrics.json" if metrics_problem == "no metrics.json" else "unreadable"
         return RunRecord(
             path, status, None, label, env, seed, None, None, curves, (), tuple(problems),
-            cost_limit,
+            cost_limit, unconstrained,
         )
     status = str(metrics.get("status") or "unknown")
     evaluation = metrics.get("eval") if isinstance(metrics.get("eval"), dict) else {}
@@ -270,6 +281,7 @@ def load_run(path: Path) -> RunRecord:
         tradeoff=_tradeoff(metrics),
         problems=tuple(problems),
         cost_limit=cost_limit,
+        unconstrained=unconstrained,
     )
 
 
