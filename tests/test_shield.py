@@ -102,6 +102,37 @@ def test_filter_leaves_actions_alone_far_from_obstacles() -> None:
     assert env.shield.stats.checked == 0
 
 
+@pytest.mark.parametrize("fallback", ["escape", "brake"])
+def test_fallback_when_braking_is_not_certified(fallback: str) -> None:
+    # 1.5 m/s straight at a hazard whose edge is 0.2 m ahead: neither full thrust nor braking
+    # clears it by the model (as after a push by a contact). "escape" picks the best-scoring
+    # escape (here full reverse while turning); "brake" keeps braking.
+    env = gym.make("sims/SafetyPointGoal1-v0")
+    base = env.unwrapped
+    layout = {"agent": (0.0, 0.0), "agent_yaw": 0.0, "hazards": [(0.4, 0.0)],
+              "vases": [(-1.5, 1.5)], "goal": (-1.5, -1.5)}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    base.body.velocity = (1.5, 0.0)
+    shield = SafetyShield(perception="gt", fallback=fallback)
+    action = shield.filter(np.array([1.0, 0.0]), base, obs)
+    backup = robot_model("point").backup(_state(base))
+    if fallback == "brake":
+        assert np.array_equal(action, backup)
+        assert (shield.stats.braked, shield.stats.escaped) == (1, 0)
+    else:
+        assert action.tolist() == [-1.0, -1.0] and not np.array_equal(action, backup)
+        assert (shield.stats.braked, shield.stats.escaped) == (0, 1)
+
+
+def test_a_filter_pickled_before_the_fallback_option_resumes_as_it_was() -> None:
+    import pickle
+
+    shield = SafetyShield()
+    del shield.__dict__["fallback"]  # what a checkpoint written before the option holds
+    restored = pickle.loads(pickle.dumps(shield))
+    assert restored.fallback == "escape" and "fallback" not in restored.__dict__
+
+
 def test_shield_rejects_bad_arguments() -> None:
     with pytest.raises(ValueError, match="margin"):
         SafetyShield(margin=-0.1)
@@ -109,6 +140,8 @@ def test_shield_rejects_bad_arguments() -> None:
         SafetyShield(perception="sonar")
     with pytest.raises(ValueError, match="kinds"):
         SafetyShield(kinds=("lava",))
+    with pytest.raises(ValueError, match="fallback"):
+        SafetyShield(fallback="pray")
 
 
 def _covered_miss(bound: bool, distance: float) -> float:

@@ -24,6 +24,15 @@ clear of the perceived regions is clear of the true ones; ``False`` is the plann
 reconstruction (peaks only, bin-centre bearings, no bound). ``"gt"`` reads the simulator.
 Objects the sensor cannot see at all (a farther object of the same kind in the same bin) stay
 outside any LiDAR filter.
+
+Contacts (the box, a pillar) are outside the model too: a push can leave the robot in a state
+from which braking is no longer certified. ``fallback`` says what happens then: ``"escape"``
+(the default) takes whichever of braking and the escape actions keeps the largest clearance
+one step ahead; ``"brake"`` keeps braking. In the one training episode with cost of the
+long-trained Point runs (outputs/reference/semdp_converged/COMMAND.md) a push left braking
+uncertified against the LiDAR-bounded regions though not against the true hazard, and the
+escape choice accelerated the robot into the hazard; replayed with ``"brake"`` the episode has
+no cost. Which is the better default is not measured yet.
 """
 
 from __future__ import annotations
@@ -44,6 +53,9 @@ from sims.safety_gym.perception import BINS, obstacles_from_lidar
 LIDAR_RANGE = 3.0
 #: Largest distance between an object at range d and its bin-centre reconstruction, per metre.
 BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
+
+#: What the filter does when neither the action nor braking is certified.
+FALLBACKS = ("escape", "brake")
 
 #: Cost-region radius of each kind of object at the root node, before the robot's extent.
 _CONTACT_KINDS = ("vases", "pillars", "gremlins")
@@ -69,15 +81,23 @@ class SafetyShield:
         lidar_bearing_bound: LiDAR only: every lit bin is a candidate and its region grows by
             the bin's worst-case bearing error (see the module docstring); ``False``: the
             planner's peak reconstruction as it is.
+        fallback: when neither the action nor braking is certified: ``"escape"`` (the best
+            one-step clearance among braking and the escape actions) or ``"brake"``.
     """
+
+    #: Class-level default: filters pickled before ``fallback`` existed (checkpoints hold the
+    #: env) resume with the behaviour they had.
+    fallback: str = "escape"
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
-                 lidar_bearing_bound: bool = True) -> None:
+                 lidar_bearing_bound: bool = True, fallback: str = "escape") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in ("lidar", "gt"):
             raise ValueError(f"shield perception must be 'lidar' or 'gt', got {perception!r}")
+        if fallback not in FALLBACKS:
+            raise ValueError(f"shield fallback must be one of {FALLBACKS}, got {fallback!r}")
         bad = [k for k in kinds if k not in OBSTACLE_KINDS]
         if bad:
             raise ValueError(f"unknown obstacle kinds {bad}; valid: {list(OBSTACLE_KINDS)}")
@@ -85,6 +105,7 @@ class SafetyShield:
         self.perception = perception
         self.kinds = tuple(kinds)
         self.lidar_bearing_bound = bool(lidar_bearing_bound)
+        self.fallback = fallback
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
         self._radii: dict[str, float] = {}
@@ -183,7 +204,7 @@ class SafetyShield:
         if self._clearance(model, state, action, regions) >= 0.0:
             return action
         brake = model.backup(state)
-        if self._clearance(model, state, brake, regions) >= 0.0:
+        if self.fallback == "brake" or self._clearance(model, state, brake, regions) >= 0.0:
             self.stats.braked += 1
             return brake.astype(np.asarray(action).dtype)
         self.stats.escaped += 1
