@@ -96,7 +96,8 @@ def _choices(cfg: DictConfig) -> tuple[str, str]:
 def _names(cfg: DictConfig) -> tuple[str, str]:
     """(algorithm, env) names for metrics.json: the config's own, else Hydra's choices."""
     if cfg.get("algo_name"):
-        return str(cfg.algo_name), str(cfg.env_name)
+        env = cfg.get("env_name")
+        return str(cfg.algo_name), str(env) if env else _choices(cfg)[1]
     return _choices(cfg)
 
 
