@@ -138,9 +138,10 @@ def build_table(
         mark_values = late_training_values(usable, fraction, until=mark)
         lines += [
             f"## Training episodes at {mark:g} env steps", "",
-            f"As the previous table for runs stopped at {mark:g} env steps: `progress.csv` "
-            f"ep_return / ep_cost over the last {fraction:.0%} of the epochs up to that step, "
-            "then mean ± standard error over seeds.", "",
+            f"What runs stopped at {mark:g} env steps would show: `progress.csv` ep_return / "
+            f"ep_cost (the stochastic policy's training episodes) over the last {fraction:.0%} "
+            "of the epochs up to that step, then mean ± standard error over seeds; runs that "
+            "never reached it are left out.", "",
             *_value_table(mark_values, envs, labels, digits),
         ]  # fmt: skip
         if pair is not None:
