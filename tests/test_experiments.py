@@ -288,11 +288,17 @@ def test_reference_of_several_sweeps_records_each_command_and_adds_the_counts(
             {"status": "completed", "wall_time_s": wall, "algo": "ppo_lag", "env": "x",
              "seed": seed, "eval": {"return_mean": 1.0 + seed, "cost_mean": 0.0}}))
         sweeps.append(sweep)
-    text = write_reference(sweeps, tmp_path / "ref").read_text()
+    collected = tmp_path / "collected" / "run"  # runs gathered by hand: no multirun.yaml
+    collected.mkdir(parents=True)
+    (collected / "metrics.json").write_text(json.dumps(
+        {"status": "completed", "wall_time_s": 0.0, "algo": "sac", "env": "y", "seed": 0,
+         "eval": {"return_mean": 5.0, "cost_mean": 0.0}}))
+    text = write_reference([*sweeps, tmp_path / "collected"], tmp_path / "ref").read_text()
+    assert "# collected: run directories collected from several commands" in text
     assert "semdp-train -m experiment=sp_driving seed=0\nsemdp-train -m experiment=sp_driving " \
         "seed=1\n" in text
-    assert "- Runs: 2 (2 completed)" in text and "summed training wall time of the runs: 2.5 min" \
-        in text and "summed over the 2 sweeps" in text
+    assert "- Runs: 3 (3 completed)" in text and "summed training wall time of the runs: 2.5 min" \
+        in text and "summed over the 3 sweeps" in text
     assert "| x | reward | 1.50 ± 0.50 |" in text
     assert str(tmp_path / "s0") not in text and "### Results: <sweep dirs>" in text
 

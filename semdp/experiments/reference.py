@@ -41,6 +41,13 @@ def sweep_command(sweep_dir: Path) -> str:
     return "semdp-train -m " + " ".join(shlex.quote(str(o)) for o in overrides)
 
 
+def _recorded_command(sweep_dir: Path) -> str:
+    """:func:`sweep_command`, or a comment for a folder of runs collected by hand."""
+    if (sweep_dir / "multirun.yaml").is_file():
+        return sweep_command(sweep_dir)
+    return f"# {sweep_dir.name}: run directories collected from several commands (no multirun.yaml)"
+
+
 def sweep_summary(sweep_dir: Path) -> dict[str, Any]:
     """Run count, statuses, summed run wall time and the sweep's wall time (seconds)."""
     metrics_files = sorted(sweep_dir.rglob("metrics.json"))
@@ -101,7 +108,7 @@ def write_reference(sweep_dir: Path | list[Path], out_dir: Path,
     text = [
         f"# Reference: `{out_dir.name}`", "",
         "Produced from the repository root with:", "", "```bash",
-        command or "\n".join(sweep_command(sweep) for sweep in sweeps),
+        command or "\n".join(_recorded_command(sweep) for sweep in sweeps),
         f"semdp-report {dirs}   # or: python -m semdp.experiments.reference {dirs} "
         f"{out_dir.as_posix()}", "```", "",
         f"- Runs: {summary['runs']} ({status}); finished {summary['finished']}.",
