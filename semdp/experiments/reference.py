@@ -1,7 +1,7 @@
 """Turn a finished sweep into a committed reference folder (outputs/reference/README.md).
 
     python -m semdp.experiments.reference <sweep dir> outputs/reference/<preset> [--order ...]
-    python -m semdp.experiments.reference <sweep s0> <sweep s1> <sweep s2> outputs/reference/<preset>
+    python -m semdp.experiments.reference <sweep s0> <sweep s1> outputs/reference/<preset>
 
 Writes the ``semdp-report`` table and figures into the folder (no checkpoints or run
 directories) and ``COMMAND.md``: the exact command (from the sweep's ``multirun.yaml``), the
@@ -112,7 +112,8 @@ def write_reference(sweep_dir: Path | list[Path], out_dir: Path,
         f"semdp-report {dirs}   # or: python -m semdp.experiments.reference {dirs} "
         f"{out_dir.as_posix()}", "```", "",
         f"- Runs: {summary['runs']} ({status}); finished {summary['finished']}.",
-        f"- Sweep wall time: {summary['sweep_wall_s'] / 60:.1f} min ({span}); summed training wall time of the runs: "
+        f"- Sweep wall time: {summary['sweep_wall_s'] / 60:.1f} min ({span}); "
+        "summed training wall time of the runs: "
         f"{summary['run_wall_s'] / 60:.1f} min (final evaluations and post-training hooks "
         "are in the sweep time only).",
         f"- Machine: {MACHINE} ({platform.python_implementation()} "
