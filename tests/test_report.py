@@ -259,6 +259,13 @@ def test_training_curves_skip_failed_runs(tmp_path: Path) -> None:
     assert plot_training_curves([failed, running], "e", tmp_path / "running.png")
 
 
+
+def test_curve_legend_counts_seeds_in_words() -> None:
+    from semdp.reporting.plots import _legend
+
+    assert _legend("CPO", 1) == "CPO (1 seed)"
+    assert _legend("Ours", 3) == "Ours (3 seeds)"
+
 def test_semdp_curves_are_put_on_low_level_env_steps(tmp_path: Path) -> None:
     """A SEMDP run logs high-level steps; the report multiplies them by k (10 here)."""
     finished = load_run(

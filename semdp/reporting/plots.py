@@ -124,7 +124,7 @@ def plot_training_curves(
             if not series:
                 continue
             grid, mean, error = aggregate_curves(series)
-            axis.plot(grid, mean, color=colour, label=f"{label} ({len(series)} seeds)")
+            axis.plot(grid, mean, color=colour, label=_legend(label, len(series)))
             axis.fill_between(grid, mean - error, mean + error, color=colour, alpha=0.25)
             drawn = True
     if not drawn:
@@ -205,7 +205,7 @@ def plot_tradeoff(
             fmt="s",
             color=colours.get(label, "black"),
             capsize=3,
-            label=f"{label} ({len(group)} seeds)",
+            label=_legend(label, len(group)),
         )
     axis.set(
         xlabel="evaluation cost",
@@ -215,6 +215,11 @@ def plot_tradeoff(
     axis.legend(fontsize=8)
     figure.savefig(path, dpi=110)
     return True
+
+
+def _legend(label: str, seeds: int) -> str:
+    """A method's legend entry with its number of seeds ("CPO (1 seed)", "Ours (3 seeds)")."""
+    return f"{label} ({seeds} seed{'' if seeds == 1 else 's'})"
 
 
 def _finite(value: float) -> float:
