@@ -188,6 +188,29 @@ def test_perception_gt_and_lidar_find_a_planted_hazard() -> None:
     assert np.min(np.linalg.norm(lidar[:, :2] - [1.0, 0.5], axis=1)) < 0.25
 
 
+
+@pytest.mark.parametrize("hazard", [(1.0, 0.5), (-0.7, 1.6), (0.3, -2.1)])
+def test_refined_lidar_recovers_an_isolated_hazard_exactly(hazard: tuple[float, float]) -> None:
+    """``lidar_refined``: the bearing from the neighbouring bins' aliasing puts an isolated
+    object at its true position (the bin-centre reconstruction is up to 11.25 deg off)."""
+    env = gym.make("sims/SafetyMassGoal1-v0")
+    layout = {"agent": [(0.0, 0.0)], "hazards": [hazard], "goal": [(-1.2, 1.2)],
+              "vases": [(-1.4, -1.4)]}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    refined = perceive_obstacles(env.unwrapped, obs, "lidar_refined", kinds=("hazards",))
+    assert refined.shape == (1, 3)
+    np.testing.assert_allclose(refined[0], [*hazard, 0.0], atol=1e-6)
+    with pytest.raises(ValueError, match="lidar_refined"):
+        perceive_obstacles(env.unwrapped, obs, "lidar2")
+
+
+def test_the_filter_keeps_its_bin_bound_under_a_refined_planner() -> None:
+    from semdp.embedded.shield import SafetyShield
+
+    assert SafetyShield(perception="lidar_refined").perception == "lidar"
+    with pytest.raises(ValueError, match="shield perception"):
+        SafetyShield(perception="radar")
+
 def test_safety_eval_attributes_violations_to_their_source() -> None:
     from types import SimpleNamespace
 

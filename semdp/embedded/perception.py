@@ -9,6 +9,11 @@ from sims.safety_gym.perception import obstacles_from_lidar
 #: Object types the planner avoids (thesis §3.6.1: not the box, not the goal).
 OBSTACLE_KINDS: tuple[str, ...] = ("hazards", "vases", "pillars", "gremlins")
 
+#: ``lidar``: the thesis' reconstruction (bin-centre bearing); ``lidar_refined``: the same peaks
+#: at the bearing implied by the aliasing of the neighbouring bins (exact for an isolated object;
+#: beyond the thesis); ``gt``: the simulator's ground truth ("Ours w/ gt").
+PERCEPTION_MODES: tuple[str, ...] = ("lidar", "lidar_refined", "gt")
+
 
 def perceive_obstacles(
     env,
@@ -25,8 +30,10 @@ def perceive_obstacles(
             ``obs_slices``, ``obstacles``).
         obs: the env's current flat observation.
         mode: ``"lidar"`` reconstructs positions from each type's 16 LiDAR bins (the thesis'
-            default, noisy: bin-centre angle, distance (1 - reading) * max); ``"gt"`` reads the
-            simulator's ground truth ("Ours w/ gt").
+            default, noisy: bin-centre angle, distance (1 - reading) * max);
+            ``"lidar_refined"`` places each peak at the bearing its neighbours' aliasing implies
+            (exact for an isolated object); ``"gt"`` reads the simulator's ground truth
+            ("Ours w/ gt").
         kinds: object types that are obstacles.
         use_radii: ground truth only: keep the objects' radii (clearance eps' + r). The thesis
             plans around centres (r = 0) and sets eps' = 0.5 m to cover the object sizes.
@@ -38,8 +45,8 @@ def perceive_obstacles(
             obstacles = obstacles.copy()
             obstacles[:, 2] = 0.0
         return obstacles
-    if mode != "lidar":
-        raise ValueError(f"perception mode must be 'lidar' or 'gt', got {mode!r}")
+    if mode not in PERCEPTION_MODES:
+        raise ValueError(f"perception mode must be one of {PERCEPTION_MODES}, got {mode!r}")
     position = np.asarray(env.robot_position, dtype=np.float64)
     heading = float(env.robot_heading)
     points = []
@@ -47,7 +54,8 @@ def perceive_obstacles(
         key = f"{kind}_lidar"
         if key in env.obs_slices:
             found = obstacles_from_lidar(
-                obs[env.obs_slices[key]], position, heading, max_dist=lidar_max_dist
+                obs[env.obs_slices[key]], position, heading, max_dist=lidar_max_dist,
+                refine_bearing=mode == "lidar_refined",
             )
             if len(found):
                 points.append(np.asarray(found, dtype=np.float64).reshape(-1, 2))

@@ -47,7 +47,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from semdp.embedded.perception import OBSTACLE_KINDS, perceive_obstacles
+from semdp.embedded.perception import OBSTACLE_KINDS, PERCEPTION_MODES, perceive_obstacles
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from sims.safety_gym.perception import BINS, obstacles_from_lidar
 
@@ -78,7 +78,9 @@ class SafetyShield:
 
     Args:
         margin: extra clearance beyond each cost region (m).
-        perception: ``"lidar"`` (the robot's own sensor, as the planner) or ``"gt"``.
+        perception: ``"lidar"`` (the robot's own sensor, as the planner) or ``"gt"``;
+            ``"lidar_refined"`` (a planner's mode) is read as ``"lidar"``: the filter bounds
+            every lit bin by its own bearing error, refined or not.
         kinds: obstacle kinds filtered against.
         lidar_bearing_bound: LiDAR only: every lit bin is a candidate and its region grows by
             the bin's worst-case bearing error (see the module docstring); ``False``: the
@@ -96,15 +98,16 @@ class SafetyShield:
                  lidar_bearing_bound: bool = True, fallback: str = "escape") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
-        if perception not in ("lidar", "gt"):
-            raise ValueError(f"shield perception must be 'lidar' or 'gt', got {perception!r}")
+        if perception not in PERCEPTION_MODES:
+            raise ValueError(
+                f"shield perception must be one of {PERCEPTION_MODES}, got {perception!r}")
         if fallback not in FALLBACKS:
             raise ValueError(f"shield fallback must be one of {FALLBACKS}, got {fallback!r}")
         bad = [k for k in kinds if k not in OBSTACLE_KINDS]
         if bad:
             raise ValueError(f"unknown obstacle kinds {bad}; valid: {list(OBSTACLE_KINDS)}")
         self.margin = float(margin)
-        self.perception = perception
+        self.perception = "lidar" if perception == "lidar_refined" else perception
         self.kinds = tuple(kinds)
         self.lidar_bearing_bound = bool(lidar_bearing_bound)
         self.fallback = fallback

@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from semdp.embedded.follower import Follower, PolicyFollower, default_follower
-from semdp.embedded.perception import OBSTACLE_KINDS, perceive_obstacles
+from semdp.embedded.perception import OBSTACLE_KINDS, PERCEPTION_MODES, perceive_obstacles
 from semdp.embedded.shield import SafetyShield
 from semdp.embedded.tracking import ego_to_world, select_tracking_index
 from solvers.planner import SafeTrajectoryPlanner
@@ -85,7 +85,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         k: low-level steps per high-level step (thesis: 10).
         subgoal_scale: metres per unit action in the ego frame (thesis code: 2.0).
         d_min: tracking-point look-ahead (App. B.2.2: 0.2 m).
-        perception: ``"lidar"`` (default, reconstructed from the LiDAR bins) or ``"gt"``.
+        perception: ``"lidar"`` (default, reconstructed from the LiDAR bins),
+            ``"lidar_refined"`` (bearings from the bins' aliasing) or ``"gt"``
+            (:data:`semdp.embedded.perception.PERCEPTION_MODES`).
         obstacle_kinds: object types the planner avoids.
         brake_steps: the last ``brake_steps`` low-level steps of each window track the robot's
             current position (the follower brakes), so each window ends slow; 0 = off (thesis).
@@ -118,8 +120,8 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             raise ValueError(f"k (low-level steps per subgoal) must be >= 1, got {k}")
         if not subgoal_scale > 0:
             raise ValueError(f"subgoal_scale must be > 0, got {subgoal_scale}")
-        if perception not in ("lidar", "gt"):
-            raise ValueError(f"perception must be 'lidar' or 'gt', got {perception!r}")
+        if perception not in PERCEPTION_MODES:
+            raise ValueError(f"perception must be one of {PERCEPTION_MODES}, got {perception!r}")
         if not 0 <= brake_steps < k:
             raise ValueError(f"brake_steps must be in [0, k={k}), got {brake_steps}")
         if frame_every < 0:

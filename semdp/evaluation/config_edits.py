@@ -9,7 +9,8 @@ The saved config of a Safety-Embedded MDP run holds its evaluation wrapper as
   ``clearance`` is kept, and its ``rescue_backend`` too when the planner class is the same;
 - ``clearance=<eps'>``: the planner's ``clearance``;
 - ``lambda=fixed|adaptive``: ``lm_adaptive`` of an LM planner (thesis App. B.2.3);
-- ``perception=lidar|gt``: the wrapper's ``perception``.
+- ``perception=lidar|lidar_refined|gt``: the wrapper's ``perception`` (the filter keeps its
+  own).
 
 Runs saved before the planner and follower became nodes (``planner: lm_adaptive`` with
 ``planner_kwargs``, ``follower: auto``) are first rewritten into the node form.

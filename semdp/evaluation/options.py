@@ -14,6 +14,7 @@ from typing import Any
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.errors import HydraException
 
+from semdp.embedded.perception import PERCEPTION_MODES
 from semdp.evaluation.errors import EvalError
 
 #: Evaluation settings; everything else is a key of the saved config.
@@ -27,12 +28,12 @@ SHORTHANDS: dict[str, str] = {
     "planner": "conf/planner name for the evaluation planner (lm, lm_adaptive, ipopt, ...)",
     "clearance": "the evaluation planner's eps' in metres",
     "lambda": "fixed | adaptive: the LM planner's lambda schedule",
-    "perception": "lidar | gt: the evaluation planner's obstacles",
+    "perception": "lidar | lidar_refined | gt: the evaluation planner's obstacles",
     "variant": "transfer: the perturbed Push variant of semdp/experiments/transfer.py",
     "actions": "mean (default, as the training runs' evaluations) | sampled: the stochastic "
                "policy's actions, as in training episodes (torch seeded per episode)",
 }
-PERCEPTIONS = ("lidar", "gt")
+PERCEPTIONS = PERCEPTION_MODES
 LAMBDAS = ("fixed", "adaptive")
 VARIANTS = ("transfer",)
 ACTIONS = ("mean", "sampled")
