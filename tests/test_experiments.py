@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import platform
 from pathlib import Path
 from typing import Any
 
@@ -301,6 +303,10 @@ def test_reference_of_several_sweeps_records_each_command_and_adds_the_counts(
         in text and "summed over the 3 sweeps" in text
     assert "| x | reward | 1.50 ± 0.50 |" in text
     assert str(tmp_path / "s0") not in text and "### Results: <sweep dirs>" in text
+    assert f"- Machine (where this folder was built): {os.cpu_count()} logical CPUs" in text
+    stated = write_reference(sweeps, tmp_path / "ref2", machine="Both lanes at load 3.").read_text()
+    line = next(x for x in stated.splitlines() if x.startswith("- Machine"))
+    assert platform.python_version() in line and line.endswith(". Both lanes at load 3.")
 
 
 @pytest.mark.parametrize(

@@ -24,9 +24,11 @@ from omegaconf import OmegaConf
 
 from semdp.report import parse_compare, parse_marks, write_report
 
-MACHINE = ("2 CPU cores (x86_64 VM), no GPU, 1 torch thread per run, `hydra.launcher.n_jobs=1`; "
-           "the machine was shared with other jobs (several helpers training and testing), so "
-           "wall times are upper bounds of a quiet machine's.")
+
+def this_machine() -> str:
+    """The machine the reference is built on: cores, architecture and Python."""
+    return (f"{os.cpu_count()} logical CPUs ({platform.machine()}), "
+            f"{platform.python_implementation()} {platform.python_version()}")
 
 
 def sweep_command(sweep_dir: Path) -> str:
@@ -83,11 +85,13 @@ def combined_summary(sweep_dirs: list[Path]) -> dict[str, Any]:
 def write_reference(sweep_dir: Path | list[Path], out_dir: Path,
                     order: list[str] | None = None, note: str = "", command: str = "",
                     compare: tuple[str, str] | None = None, late: float = 0.0,
-                    at: tuple[float, ...] = ()) -> Path:
+                    at: tuple[float, ...] = (), machine: str = "") -> Path:
     """Report + ``COMMAND.md`` into ``out_dir``; returns the ``COMMAND.md`` path.
 
     ``sweep_dir``: one sweep, or several reported together (their commands, from each
-    ``multirun.yaml``, one per line; their run counts and wall times added).
+    ``multirun.yaml``, one per line; their run counts and wall times added). ``machine``: how
+    the runs shared the machine (load, other jobs, GPU), stated beside the machine this
+    builder runs on.
     """
     sweeps = [Path(d) for d in (sweep_dir if isinstance(sweep_dir, list) else [sweep_dir])]
     out_dir = Path(out_dir)
@@ -116,8 +120,8 @@ def write_reference(sweep_dir: Path | list[Path], out_dir: Path,
         "summed training wall time of the runs: "
         f"{summary['run_wall_s'] / 60:.1f} min (final evaluations and post-training hooks "
         "are in the sweep time only).",
-        f"- Machine: {MACHINE} ({platform.python_implementation()} "
-        f"{platform.python_version()}, {os.cpu_count()} logical CPUs).",
+        f"- Machine (where this folder was built): {this_machine()}."
+        + (f" {machine}" if machine else ""),
     ]
     if note:
         text += ["", note]
@@ -136,6 +140,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--order", default="", help="comma-separated method labels first")
     parser.add_argument("--note", default="", help="a paragraph added to COMMAND.md")
+    parser.add_argument("--machine", default="",
+                        help="how the runs ran: threads, jobs at a time, load, other jobs")
     parser.add_argument("--command", default="",
                         help="the command(s) to record (default: from multirun.yaml)")
     parser.add_argument("--compare", default="",
@@ -147,7 +153,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     order = [s.strip() for s in args.order.split(",") if s.strip()]
     path = write_reference(list(args.sweep_dir), args.out_dir, order, args.note, args.command,
-                           parse_compare(args.compare), args.late, parse_marks(args.at))
+                           parse_compare(args.compare), args.late, parse_marks(args.at),
+                           args.machine)
     print(path.read_text())
 
 
