@@ -169,6 +169,17 @@ def test_semdp_config_overrides_reach_the_instantiated_planner(
     assert other.env.planner is not semdp.planner
 
 
+
+def test_refined_perception_reaches_the_planner_and_leaves_the_filter_its_bound(
+    compose_train: Callable[..., DictConfig],
+) -> None:
+    cfg = compose_train("algo=sac", "env=semdp_point_push1", "env.perception=lidar_refined")
+    for node in (cfg.env.wrapper, cfg.env.eval_wrapper):
+        semdp = make_env(cfg.env.id, {}, OmegaConf.to_container(node, resolve=True)).env
+        assert isinstance(semdp, SafetyEmbeddedEnv)
+        assert semdp.perception == "lidar_refined"
+        assert semdp.shield is not None and semdp.shield.perception == "lidar"
+
 def test_straight_planner_ignores_obstacles_and_reports_clearance() -> None:
     plan = StraightLinePlanner(n_waypoints=5).plan([0, 0], [2, 0], [[1.0, 0.0, 0.0]])
     assert np.allclose(plan.waypoints[:, 0], [0, 0.5, 1.0, 1.5, 2.0])
