@@ -33,7 +33,6 @@ SHORTHANDS: dict[str, str] = {
     "actions": "mean (default, as the training runs' evaluations) | sampled: the stochastic "
                "policy's actions, as in training episodes (torch seeded per episode)",
 }
-PERCEPTIONS = PERCEPTION_MODES
 LAMBDAS = ("fixed", "adaptive")
 VARIANTS = ("transfer",)
 ACTIONS = ("mean", "sampled")
@@ -119,7 +118,7 @@ def _shorthand(key: str, value: Any) -> tuple[str, Any]:
     if key == "lambda":
         return "lambda_", _choice(key, value, LAMBDAS)
     if key == "perception":
-        return key, _choice(key, value, PERCEPTIONS)
+        return key, _choice(key, value, PERCEPTION_MODES)
     if key == "actions":
         return key, _choice(key, value, ACTIONS)
     return key, _choice(key, value, VARIANTS)
