@@ -269,8 +269,11 @@ def write_report(
     out_dir = Path(out_dir).resolve()
     runs, seen = [], set()
     for sweep in roots:
+        # Runs below the output folder are skipped unless their sweep was asked for by name
+        # (a reference folder's kept runs, semdp.experiments.archive).
+        asked_inside = sweep.is_relative_to(out_dir)
         for run in load_runs(sweep):
-            if run.path not in seen and not run.path.is_relative_to(out_dir):
+            if run.path not in seen and (asked_inside or not run.path.is_relative_to(out_dir)):
                 seen.add(run.path)
                 runs.append(run)
     root = roots[0] if len(roots) == 1 else Path(os.path.commonpath(roots))

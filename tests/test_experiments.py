@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import time
 from pathlib import Path
 from typing import Any
 
@@ -329,3 +330,76 @@ def test_launcher_configs_compose_with_a_preset(launcher: str, plugin: str, targ
         assert (cfg.hydra.launcher.cpus_per_task, cfg.hydra.launcher.timeout_min) == (2, 1440)
     if launcher == "cluster_ray":
         assert cfg.hydra.launcher.ray.remote.num_cpus == 2
+
+
+def _sweep_with_runs(root: Path, seeds: tuple[int, ...], start: float) -> Path:
+    """A sweep directory of completed PPO-Lag runs with planted times and returns."""
+    root.mkdir(parents=True)
+    (root / "multirun.yaml").write_text(
+        "hydra:\n  overrides:\n    task: [experiment=sp_safety_gym]\n    hydra: []\n")
+    os.utime(root / "multirun.yaml", (start, start))
+    for index, seed in enumerate(seeds):
+        run = root / f"{index}_ppo_lag_s{seed}"
+        (run / ".hydra").mkdir(parents=True)
+        (run / ".hydra" / "overrides.yaml").write_text(f"- seed={seed}\n")
+        (run / "checkpoints").mkdir()
+        (run / "checkpoints" / "last.pt").write_bytes(b"0" * 1000)
+        (run / "config.yaml").write_text(f"cost_limit: 25.0\nseed: {seed}\n")
+        (run / "progress.csv").write_text("env_steps,ep_return,ep_cost\n10,1.0,3.0\n20,2.0,1.0\n")
+        (run / "metrics.json").write_text(json.dumps(
+            {"status": "completed", "wall_time_s": 60.0, "algo": "ppo_lag", "env": "x",
+             "seed": seed, "eval": {"return_mean": float(seed), "cost_mean": 0.0}}))
+        finish = start + 100.0 * (index + 1)
+        os.utime(run / "metrics.json", (finish, finish))
+    return root
+
+
+def test_archived_sweep_keeps_the_light_files_and_the_times_through_a_copy(
+    tmp_path: Path
+) -> None:
+    from semdp.experiments.archive import archive_sweep
+    from semdp.experiments.reference import sweep_summary
+
+    sweep = _sweep_with_runs(tmp_path / "sweep", (0, 1), start=1_000_000.0)
+    assert archive_sweep(sweep, tmp_path / "kept") == 2
+    kept = tmp_path / "kept"
+    assert (kept / "0_ppo_lag_s0" / "progress.csv").read_text() == \
+        (sweep / "0_ppo_lag_s0" / "progress.csv").read_text()
+    assert (kept / "1_ppo_lag_s1" / ".hydra" / "overrides.yaml").is_file()
+    assert not (kept / "0_ppo_lag_s0" / "checkpoints").exists()
+    # A git checkout sets every file's time to now: the sweep's times must not follow it.
+    for path in kept.rglob("*"):
+        os.utime(path, (2_000_000.0, 2_000_000.0))
+    summary = sweep_summary(kept)
+    assert summary["sweep_wall_s"] == pytest.approx(200.0)  # start to the second run's finish
+    assert summary["runs"] == 2 and summary["run_wall_s"] == 120.0
+    assert summary["finished"] == time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(1_000_200.0))
+    assert archive_sweep(kept, kept) == 2  # onto itself: nothing to do
+    with pytest.raises(ValueError, match="inside"):
+        archive_sweep(sweep, sweep / "0_ppo_lag_s0" / "kept")
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match="not an archive"):
+        archive_sweep(sweep, tmp_path / "other")
+
+
+def test_reference_with_kept_runs_is_rebuilt_and_extended_from_them_alone(
+    tmp_path: Path
+) -> None:
+    import shutil
+
+    from semdp.experiments.reference import write_reference
+
+    first = _sweep_with_runs(tmp_path / "scratch" / "s", (0, 1), start=1_000_000.0)
+    out = tmp_path / "ref"
+    text = write_reference([first], out, keep_runs=True).read_text()
+    assert "| x | reward | 0.50 ± 0.50 |" in text and "`runs/` holds" in text and "`s`" in text
+    shutil.rmtree(tmp_path / "scratch")  # the machine is gone; a later seed runs elsewhere
+    second = _sweep_with_runs(tmp_path / "later" / "s", (2,), start=1_000_500.0)
+    rebuilt = write_reference([out / "runs" / "s", second], out, keep_runs=True).read_text()
+    assert "| x | reward | 1.00 ± 0.58 |" in rebuilt and "- Runs: 3 (3 completed)" in rebuilt
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["s", "s_2"]
+    assert (out / "runs" / "s_2" / "0_ppo_lag_s2" / "metrics.json").is_file()
+    # Built again from one archive only: runs/ holds exactly what the table was built from.
+    write_reference([out / "runs" / "s_2"], out, keep_runs=True)
+    assert [p.name for p in (out / "runs").iterdir()] == ["s_2"]
