@@ -121,7 +121,7 @@ def keep_sweeps(sweeps: list[Path], runs_dir: Path) -> list[str]:
         names[resolved] = name
     for resolved, name in names.items():
         archive_sweep(resolved, runs_dir / name)
-    for stale in sorted(runs_dir.iterdir()):
+    for stale in sorted(runs_dir.iterdir()) if runs_dir.is_dir() else []:
         if stale.name not in names.values():
             shutil.rmtree(stale) if stale.is_dir() else stale.unlink()
     return [names[Path(sweep).resolve()] for sweep in sweeps]
@@ -142,8 +142,8 @@ def write_reference(sweep_dir: Path | list[Path], out_dir: Path,
     """
     sweeps = [Path(d) for d in (sweep_dir if isinstance(sweep_dir, list) else [sweep_dir])]
     out_dir = Path(out_dir)
-    kept = keep_sweeps(sweeps, out_dir / RUNS_DIR) if keep_runs else []
     write_report(sweeps, out_dir, order=order, compare=compare, late=late, at=at)
+    kept = keep_sweeps(sweeps, out_dir / RUNS_DIR) if keep_runs else []
     summary = combined_summary(sweeps)
     table = (out_dir / "table.md").read_text()
     for sweep in sweeps:
