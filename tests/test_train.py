@@ -247,3 +247,35 @@ def test_semdp_train_does_not_load_the_planner_for_other_envs() -> None:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120, check=True)
     assert done.stdout.split() == ["False", "False"]
+
+
+def test_resume_auto_skips_the_finished_runs_of_a_kept_sweep_on_another_machine(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A reference folder keeps metrics.json, progress.csv and config.yaml (no checkpoints):
+    # copied back as a sweep directory on a new machine, the rerun skips what finished and
+    # starts afresh what had not (no checkpoint travelled), to the same numbers.
+    import shutil
+
+    from semdp.experiments.archive import archive_sweep
+
+    auto = functools.partial(tiny_train, "ppo_lag", "resume=auto")
+    run(auto(), tmp_path / "sweep" / "0_done")
+    original = PPOLag.train_epoch
+
+    def crash_in_epoch_3(self: PPOLag) -> dict[str, float]:
+        if self.epoch == 2:
+            raise RuntimeError("simulated crash")
+        return original(self)
+
+    monkeypatch.setattr(PPOLag, "train_epoch", crash_in_epoch_3)
+    with pytest.raises(RuntimeError, match="simulated crash"):
+        run(auto(), tmp_path / "sweep" / "1_cut")
+    archive_sweep(tmp_path / "sweep", tmp_path / "kept")
+    shutil.rmtree(tmp_path / "sweep")  # the old machine is gone
+    done = json.loads((tmp_path / "kept" / "0_done" / "metrics.json").read_text())
+    assert run(auto(), tmp_path / "kept" / "0_done") == done  # crashes if it trained
+    monkeypatch.setattr(PPOLag, "train_epoch", original)
+    restarted = run(auto(), tmp_path / "kept" / "1_cut")
+    assert restarted["status"] == "completed" and restarted["eval"] == done["eval"]
+    assert [int(r["epoch"]) for r in _rows(tmp_path / "kept" / "1_cut")] == [1, 2, 3, 4]
