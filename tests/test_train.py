@@ -8,6 +8,7 @@ import functools
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hydra.errors import ConfigCompositionException, MissingConfigException
@@ -125,6 +126,19 @@ def test_train_resume_after_crash_matches_uninterrupted_run(
     assert resumed["status"] == "completed"
 
 
+def _crash_ppo_lag_in_epoch_3(monkeypatch: pytest.MonkeyPatch) -> Callable[[PPOLag], Any]:
+    """Make PPO-Lag's third epoch raise; return the real ``train_epoch`` to restore it."""
+    original = PPOLag.train_epoch
+
+    def crash_in_epoch_3(self: PPOLag) -> dict[str, float]:
+        if self.epoch == 2:
+            raise RuntimeError("simulated crash")
+        return original(self)
+
+    monkeypatch.setattr(PPOLag, "train_epoch", crash_in_epoch_3)
+    return original
+
+
 def test_resume_auto_starts_skips_continues_and_refuses_another_config(
     tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -135,14 +149,7 @@ def test_resume_auto_starts_skips_continues_and_refuses_another_config(
     fresh = run(auto(), tmp_path / "fresh")
     assert fresh["eval"] == reference["eval"]
     assert OmegaConf.load(tmp_path / "fresh" / "config.yaml").resume is None
-    original = PPOLag.train_epoch
-
-    def crash_in_epoch_3(self: PPOLag) -> dict[str, float]:
-        if self.epoch == 2:
-            raise RuntimeError("simulated crash")
-        return original(self)
-
-    monkeypatch.setattr(PPOLag, "train_epoch", crash_in_epoch_3)
+    original = _crash_ppo_lag_in_epoch_3(monkeypatch)
     with pytest.raises(RuntimeError, match="simulated crash"):
         run(auto(), tmp_path / "crashed")
     # Finished: returned as saved, nothing trains (train_epoch would crash at epoch 2 here).
@@ -261,14 +268,7 @@ def test_resume_auto_skips_the_finished_runs_of_a_kept_sweep_on_another_machine(
 
     auto = functools.partial(tiny_train, "ppo_lag", "resume=auto")
     run(auto(), tmp_path / "sweep" / "0_done")
-    original = PPOLag.train_epoch
-
-    def crash_in_epoch_3(self: PPOLag) -> dict[str, float]:
-        if self.epoch == 2:
-            raise RuntimeError("simulated crash")
-        return original(self)
-
-    monkeypatch.setattr(PPOLag, "train_epoch", crash_in_epoch_3)
+    original = _crash_ppo_lag_in_epoch_3(monkeypatch)
     with pytest.raises(RuntimeError, match="simulated crash"):
         run(auto(), tmp_path / "sweep" / "1_cut")
     archive_sweep(tmp_path / "sweep", tmp_path / "kept")
