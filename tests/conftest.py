@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import pytest
 from omegaconf import DictConfig
@@ -44,3 +45,22 @@ def tiny_train(compose_train: Callable[..., DictConfig]) -> Callable[..., DictCo
         return compose_train(f"algo={algo}", *TINY, *TINY_ALGO[algo], *extra)
 
     return _tiny
+
+
+@pytest.fixture
+def crash_in_epoch_3(monkeypatch: pytest.MonkeyPatch) -> Callable[[type], Callable[..., Any]]:
+    """``crash_in_epoch_3(cls)`` makes ``cls.train_epoch`` raise in the third epoch (index 2)
+    and returns the real method, for the test to restore before resuming."""
+
+    def _patch(cls: type) -> Callable[..., Any]:
+        original = cls.train_epoch  # type: ignore[attr-defined]
+
+        def crashing(self: Any) -> dict[str, float]:
+            if self.epoch == 2:
+                raise RuntimeError("simulated crash")
+            return original(self)
+
+        monkeypatch.setattr(cls, "train_epoch", crashing)
+        return original
+
+    return _patch

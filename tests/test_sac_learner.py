@@ -15,6 +15,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -108,19 +109,12 @@ def test_learner_process_gives_the_inline_numbers(
 
 def test_round_loop_resumes_exactly_after_a_crash(
     tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-    hosts: list[ProcessLearner],
+    hosts: list[ProcessLearner], crash_in_epoch_3: Callable[[type], Callable[..., Any]],
 ) -> None:
     config = functools.partial(tiny_train, "sac", *ROUNDS, "algo.learner=process",
                                "checkpoint_every=1")
     reference = run(config(), tmp_path / "ref")
-    original = SAC.train_epoch
-
-    def crash_in_epoch_3(self: SAC) -> dict[str, float]:
-        if self.epoch == 2:
-            raise RuntimeError("simulated crash")
-        return original(self)
-
-    monkeypatch.setattr(SAC, "train_epoch", crash_in_epoch_3)
+    original = crash_in_epoch_3(SAC)
     with pytest.raises(RuntimeError, match="simulated crash"):
         run(config(), tmp_path / "crashed")
     assert not _alive(hosts[-1].process.pid)  # the learner process ended with the error

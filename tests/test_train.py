@@ -98,18 +98,12 @@ def test_train_resume_after_crash_matches_uninterrupted_run(
     tiny_train: Callable[..., DictConfig],
     tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
+    crash_in_epoch_3: Callable[[type], Callable[..., Any]],
 ) -> None:
     tiny_train = functools.partial(tiny_train, algo, f"env={env}")  # type: ignore[assignment]
     cfg = tiny_train("checkpoint_every=1")
     reference = run(cfg, tmp_path / "ref")
-    original = cls.train_epoch
-
-    def crash_in_epoch_3(self: object) -> dict[str, float]:
-        if self.epoch == 2:  # type: ignore[attr-defined]
-            raise RuntimeError("simulated crash")
-        return original(self)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(cls, "train_epoch", crash_in_epoch_3)
+    original = crash_in_epoch_3(cls)
     with pytest.raises(RuntimeError, match="simulated crash"):
         run(tiny_train("checkpoint_every=1"), tmp_path / "crashed")
     failed = json.loads((tmp_path / "crashed" / "metrics.json").read_text())
@@ -126,21 +120,9 @@ def test_train_resume_after_crash_matches_uninterrupted_run(
     assert resumed["status"] == "completed"
 
 
-def _crash_ppo_lag_in_epoch_3(monkeypatch: pytest.MonkeyPatch) -> Callable[[PPOLag], Any]:
-    """Make PPO-Lag's third epoch raise; return the real ``train_epoch`` to restore it."""
-    original = PPOLag.train_epoch
-
-    def crash_in_epoch_3(self: PPOLag) -> dict[str, float]:
-        if self.epoch == 2:
-            raise RuntimeError("simulated crash")
-        return original(self)
-
-    monkeypatch.setattr(PPOLag, "train_epoch", crash_in_epoch_3)
-    return original
-
-
 def test_resume_auto_starts_skips_continues_and_refuses_another_config(
-    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    crash_in_epoch_3: Callable[[type], Callable[..., Any]],
 ) -> None:
     # The rerun of a sweep (same hydra.sweep.dir, resume=auto): a finished job is left as it is,
     # a crashed one continues to the uninterrupted run's numbers, another config is refused.
@@ -149,7 +131,7 @@ def test_resume_auto_starts_skips_continues_and_refuses_another_config(
     fresh = run(auto(), tmp_path / "fresh")
     assert fresh["eval"] == reference["eval"]
     assert OmegaConf.load(tmp_path / "fresh" / "config.yaml").resume is None
-    original = _crash_ppo_lag_in_epoch_3(monkeypatch)
+    original = crash_in_epoch_3(PPOLag)
     with pytest.raises(RuntimeError, match="simulated crash"):
         run(auto(), tmp_path / "crashed")
     # Finished: returned as saved, nothing trains (train_epoch would crash at epoch 2 here).
@@ -257,7 +239,8 @@ def test_semdp_train_does_not_load_the_planner_for_other_envs() -> None:
 
 
 def test_resume_auto_skips_the_finished_runs_of_a_kept_sweep_on_another_machine(
-    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    crash_in_epoch_3: Callable[[type], Callable[..., Any]],
 ) -> None:
     # A reference folder keeps metrics.json, progress.csv and config.yaml (no checkpoints):
     # copied back as a sweep directory on a new machine, the rerun skips what finished and
@@ -268,7 +251,7 @@ def test_resume_auto_skips_the_finished_runs_of_a_kept_sweep_on_another_machine(
 
     auto = functools.partial(tiny_train, "ppo_lag", "resume=auto")
     run(auto(), tmp_path / "sweep" / "0_done")
-    original = _crash_ppo_lag_in_epoch_3(monkeypatch)
+    original = crash_in_epoch_3(PPOLag)
     with pytest.raises(RuntimeError, match="simulated crash"):
         run(auto(), tmp_path / "sweep" / "1_cut")
     archive_sweep(tmp_path / "sweep", tmp_path / "kept")
