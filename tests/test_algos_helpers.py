@@ -18,12 +18,12 @@ from omegaconf import DictConfig, open_dict
 
 from semdp.common.critic_regression import CriticTargets, regress_critics
 from semdp.common.critic_worker import CriticWorker
-from semdp.common.forked_worker import fork_available
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import ValueCritic
 from semdp.common.vector_stepping import VectorStepper, success_flags
 from semdp.envs import make_vec_env, split_step_infos
 from semdp.train import run
+from solvers.workers import fork_available
 
 pytestmark = pytest.mark.skipif(not fork_available(), reason="helpers need fork")
 

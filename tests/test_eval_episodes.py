@@ -17,9 +17,9 @@ from semdp.algos.eval_episodes import (
     summarize,
     worker_groups,
 )
-from semdp.common.forked_worker import fork_available
 from semdp.embedded.artifacts import timing_summary
 from semdp.envs import make_vec_env
+from solvers.workers import HelperError, fork_available
 
 needs_fork = pytest.mark.skipif(not fork_available(), reason="needs the fork start method")
 
@@ -73,7 +73,7 @@ def test_a_helper_failure_is_reported_with_its_traceback() -> None:
     envs = gym.vector.SyncVectorEnv(
         [lambda: gym.make("Pendulum-v1", max_episode_steps=5) for _ in range(3)],
         autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
-    with pytest.raises(RuntimeError, match=r"evaluation helper failed(.|\n)*planted failure"):
+    with pytest.raises(HelperError, match=r"semdp-eval \(pid \d+\) failed:(.|\n)*planted failure"):
         evaluate_episodes(envs, fails_in_helper, 3, seed=0, workers=2)
     assert calls["n"] == 5  # this process ran its two sub-envs' episodes to the end
 

@@ -4,7 +4,9 @@ problems; bad inputs, a dead helper and pickling."""
 
 from __future__ import annotations
 
+import os
 import pickle
+import signal
 import time
 
 import numpy as np
@@ -26,6 +28,16 @@ VARIANTS = {
     "scp": {"backend": "scp"},
 }
 MAX_OBSTACLES = 4  # few compiled slot counts: quick to build, and easy to exceed
+
+
+def _wait_gone(pid: int) -> None:
+    for _ in range(100):
+        try:
+            if os.waitpid(pid, os.WNOHANG)[0] == pid:
+                return
+        except ChildProcessError:
+            return
+        time.sleep(0.05)
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -127,8 +139,8 @@ def test_plan_batch_survives_a_dead_helper(planners) -> None:
     loop = [planner.plan(s, g, o, warm_start=False)
             for s, g, o in zip(starts, subgoals, obstacles, strict=True)]
     helper = batch_module.get_pool().helpers[0]
-    helper.process.kill()
-    helper.process.wait(timeout=10)
+    os.kill(helper.process.pid, signal.SIGKILL)
+    _wait_gone(helper.process.pid)
     batch = plan_batch(planner, starts, subgoals, obstacles, workers=2)
     for a, b in zip(batch, loop, strict=True):
         np.testing.assert_allclose(a.waypoints, b.waypoints, atol=1e-9)

@@ -3,7 +3,7 @@
 :meth:`semdp.algos.base.Algorithm.evaluate` runs a fixed quota of episodes per sub-env (so
 short episodes are not over-represented) with the mean action. Each sub-env's episodes start
 from its own seed (``seed + i``, as a vector reset with an integer seed gives), so the sub-envs
-can be shared out: ``workers=2`` forks a helper (:mod:`semdp.common.forked_worker`) that runs
+can be shared out: ``workers=2`` forks a helper (:mod:`solvers.workers`) that runs
 the second half of the sub-envs while this process runs the first. The layouts are the same
 for any split; the policy's forward pass then sees smaller batches, whose floating-point
 results may differ in the last bits (as for any change of the evaluation's vector size), so a
@@ -18,8 +18,6 @@ run here.
 
 from __future__ import annotations
 
-import pickle
-import traceback
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -27,8 +25,8 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from semdp.common.forked_worker import ForkedWorker, fork_available
 from semdp.common.vector_stepping import stepper_for
+from solvers.workers import Helper, fork_available
 
 #: One finished episode: (sub-env index, episode number in that sub-env, return, cost,
 #: success or None).
@@ -119,23 +117,20 @@ def _counters(env: gym.Env) -> dict[str, float] | None:
 
 def _child_job(
     envs: gym.vector.VectorEnv, policy: Policy, seed: int, quota: list[int], indices: list[int]
-) -> Callable[[bytes], bytes]:
+) -> Callable[[object], Any]:
     """The helper's handler: the episodes of ``indices`` and its sub-envs' counter deltas."""
 
-    def handle(_: bytes) -> bytes:
-        try:
-            sub = subset_env(envs, indices)
-            assert sub is not None
-            before = [_counters(e) for e in sub.envs]
-            results = run_episodes(sub, policy, [seed + i for i in indices], quota, indices)
-            deltas = []
-            for start, env in zip(before, sub.envs, strict=True):
-                end = _counters(env)
-                deltas.append(None if start is None or end is None else
-                              {k: end[k] - start.get(k, 0.0) for k in end})
-            return pickle.dumps(("ok", results, deltas))
-        except BaseException:
-            return pickle.dumps(("error", traceback.format_exc(), None))
+    def handle(_: object) -> tuple[list[EpisodeResult], list[dict[str, float] | None]]:
+        sub = subset_env(envs, indices)
+        assert sub is not None
+        before = [_counters(e) for e in sub.envs]
+        results = run_episodes(sub, policy, [seed + i for i in indices], quota, indices)
+        deltas = []
+        for start, env in zip(before, sub.envs, strict=True):
+            end = _counters(env)
+            deltas.append(None if start is None or end is None else
+                          {k: end[k] - start.get(k, 0.0) for k in end})
+        return results, deltas
 
     return handle
 
@@ -162,17 +157,15 @@ def evaluate_episodes(
     if own is None:
         results = run_episodes(envs, policy, seed, quota, range(envs.num_envs))
         return sorted(results, key=lambda r: r[:2])
-    helpers: list[tuple[list[int], ForkedWorker]] = []
+    helpers: list[tuple[list[int], Helper]] = []
     try:
         for group in groups[1:]:
-            worker = ForkedWorker(_child_job(envs, policy, seed, quota, group), "semdp-eval")
-            worker.send(b"run")
+            worker = Helper.fork(_child_job(envs, policy, seed, quota, group), "semdp-eval")
+            worker.send("run")
             helpers.append((group, worker))
         results = run_episodes(own, policy, [seed + i for i in groups[0]], quota, groups[0])
         for group, worker in helpers:
-            status, payload, deltas = pickle.loads(worker.receive())
-            if status != "ok":
-                raise RuntimeError(f"evaluation helper failed:\n{payload}")
+            payload, deltas = worker.receive()
             results.extend(payload)
             for i, delta in zip(group, deltas, strict=True):
                 if delta is not None:

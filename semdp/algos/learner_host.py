@@ -6,35 +6,25 @@ Both hosts take the same calls from :class:`semdp.algos.sac.SAC`'s round loop --
 ``pull_actor(actor)`` to act with the new weights -- and give the same numbers:
 :class:`InlineLearner` runs the updates inside ``wait()``, :class:`ProcessLearner` sends them to
 a learner process (:mod:`semdp.algos.learner_process`) that runs them while the training process
-collects the round, on the other core. The learner process runs in a session of its own and
-ignores SIGINT (a terminal's Ctrl-C reaches only the training process, which stops it), exits
-when its socket closes (the training process ended or died), and is terminated by
-:meth:`ProcessLearner.close`, by garbage collection of its host or at interpreter exit.
+collects the round, on the other core. The learner process is a :class:`solvers.workers.Helper`:
+it ignores SIGINT (a terminal's Ctrl-C reaches only the training process, which stops it), exits
+when its connection closes, and fails with one :class:`~solvers.workers.HelperError` naming it.
 """
 
 from __future__ import annotations
 
-import socket
-import subprocess
-import sys
-import weakref
-from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
 
-from semdp.algos.learner_messages import receive_message, send_message
 from semdp.algos.replay_shared import SharedReplayBuffer
 from semdp.algos.sac_learner import SACLearner
+from solvers.workers import Helper
 
-#: Seconds to wait for a learner process to answer "close" before terminating it.
+#: Seconds to wait for a learner process to copy its state back when it is closed.
 CLOSE_TIMEOUT_S = 10.0
-
-
-class LearnerError(RuntimeError):
-    """The learner process failed; the message carries its traceback."""
 
 
 class InlineLearner:
@@ -68,24 +58,13 @@ class InlineLearner:
         """Nothing to stop."""
 
 
-def _terminate(process: subprocess.Popen, conn: Connection) -> None:
-    """Last resort (garbage collection, interpreter exit): stop the process without asking."""
-    conn.close()
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(2.0)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(2.0)
-
-
 class ProcessLearner:
     """Runs the updates in a learner process on the shared replay buffer.
 
-    The process is ``python -m semdp.algos.learner_process`` in a session of its own (so a
-    terminal's Ctrl-C reaches only the training process), connected by a socket pair; it maps
-    the replay file through the descriptor it inherits.
+    The process is a spawned :class:`solvers.workers.Helper`
+    (:class:`semdp.algos.learner_process.LearnerServer`) that maps the replay file through the
+    descriptor it inherits; it fails, dies and stops as every helper does (one
+    :class:`~solvers.workers.HelperError` naming it).
 
     Args:
         core: the training process' learner: its settings build the process' learner, its state
@@ -98,50 +77,27 @@ class ProcessLearner:
         if buffer.fd is None:
             raise ValueError("ProcessLearner needs a SharedReplayBuffer built with shared=True")
         self.core = core
-        ours, theirs = socket.socketpair()
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "semdp.algos.learner_process", str(theirs.fileno())],
-            pass_fds=(theirs.fileno(), buffer.fd), stdin=subprocess.DEVNULL,
-            start_new_session=True,
-        )
-        theirs.close()
-        self._conn = Connection(ours.detach())
-        self._finalizer = weakref.finalize(self, _terminate, self.process, self._conn)
-        send_message(self._conn, ("init", (core.settings, buffer.fd, buffer.layout,
-                                           buffer.nbytes, int(threads))))
+        self.helper = Helper.spawn("semdp.algos.learner_process:LearnerServer",
+                                   "semdp-learner", pass_fds=(buffer.fd,), threads=threads)
+        self.helper.send(("init", core.settings, buffer.fd, buffer.layout, buffer.nbytes,
+                          int(threads)))
         self._outstanding = 1
         self._loaded = False  # the core's state goes with the first command (the process is up)
         self._actor: np.ndarray | None = None
 
     # ----------------------------------------------------------------- protocol
-    def _send(self, command: str, *args: Any) -> None:
+    def _send(self, *request: Any) -> None:
         if not self._loaded:
             self._loaded = True
             self._send("load", self.core.state_dict())
-        try:
-            send_message(self._conn, (command, args))
-        except OSError as exc:  # BrokenPipeError, ConnectionResetError: the process is gone
-            raise LearnerError(f"the learner process hung up ({exc!r})") from exc
+        self.helper.send(request)
         self._outstanding += 1
-
-    def _receive(self) -> Any:
-        while not self._conn.poll(1.0):
-            if self.process.poll() is not None:
-                raise LearnerError(
-                    f"the learner process died (exit code {self.process.returncode})")
-        try:
-            status, reply = receive_message(self._conn)
-        except (EOFError, OSError) as exc:
-            raise LearnerError(f"the learner process hung up ({exc!r})") from exc
-        self._outstanding -= 1
-        if status == "error":
-            raise LearnerError(f"the learner process failed:\n{reply}")
-        return reply
 
     def _drain(self) -> Any:
         reply = None
         while self._outstanding:
-            reply = self._receive()
+            self._outstanding -= 1
+            reply = self.helper.receive()
         return reply
 
     # ----------------------------------------------------------------- rounds
@@ -180,14 +136,8 @@ class ProcessLearner:
 
     def close(self, keep_state: bool = True) -> None:
         """Stop the process; with ``keep_state`` first copy its state into :attr:`core`."""
-        if not self._finalizer.alive:
-            return
         try:
-            if keep_state and self._loaded and self.process.poll() is None:
+            if keep_state and self._loaded and self.helper.alive:
                 self.core.load_state_dict(self.state_dict())
-                self._send("close")
-                if self._conn.poll(CLOSE_TIMEOUT_S):
-                    receive_message(self._conn)
-                self.process.wait(CLOSE_TIMEOUT_S)
         finally:
-            self._finalizer()
+            self.helper.close(CLOSE_TIMEOUT_S)

@@ -40,12 +40,12 @@ from semdp.algos.rollout_helper import RolloutHelper
 from semdp.common.buffers import RolloutBatch, RolloutBuffer
 from semdp.common.critic_regression import CriticTargets, regress_critics
 from semdp.common.critic_worker import CriticWorker
-from semdp.common.forked_worker import fork_available
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
 from semdp.common.optim import FlatAdam
 from semdp.common.option_probe import FasterOption, idle_core
 from semdp.common.vector_stepping import VectorStepper, stepper_for
+from solvers.workers import fork_available
 
 logger = logging.getLogger(__name__)
 

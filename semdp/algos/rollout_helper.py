@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import copy
 import pickle
-import traceback
 from collections.abc import Callable
 from typing import Any
 
@@ -22,13 +21,11 @@ import numpy as np
 import torch
 
 from semdp.algos.rollout import RolloutPart, roll_part
-from semdp.common.forked_worker import ForkedWorker
 from semdp.common.networks import GaussianActor
 from semdp.common.normalization import RunningNormalizer
 from semdp.common.vector_stepping import VectorStepper
+from solvers.workers import Helper
 
-_ROLL, _STATE = b"r", b"p"
-_OK, _ERROR = b"d", b"e"
 #: Pickle protocol of the helper's sub-envs (torch.save's default, as for in-process envs).
 STATE_PROTOCOL = 2
 
@@ -59,24 +56,17 @@ class _Server:
         self.actor, self.normalizer, self.to_env_action = actor, normalizer, to_env_action
         self.stepper = VectorStepper(envs, rows)
 
-    def __call__(self, request: bytes) -> bytes:
-        try:
-            if request[:1] == _ROLL:
-                job = pickle.loads(request[1:])
-                self.actor.load_state_dict({k: torch.from_numpy(v)
-                                            for k, v in job["actor"].items()})
-                self.normalizer.load_state_dict(job["normalizer"])
-                part = roll_part(self.actor, self.normalizer, self.to_env_action, self.stepper,
-                                 self.rows, job["num_envs"], torch.from_numpy(job["noise"]),
-                                 job["obs"])
-                return _OK + pickle.dumps(part, protocol=pickle.HIGHEST_PROTOCOL)
-            if request == _STATE:
-                blobs = [pickle.dumps(self.envs.envs[i], protocol=STATE_PROTOCOL)
-                         for i in self.rows]
-                return _OK + pickle.dumps(blobs, protocol=pickle.HIGHEST_PROTOCOL)
-            raise ValueError(f"unknown request {request[:1]!r}")
-        except Exception:  # reported to the trainer, which raises it
-            return _ERROR + traceback.format_exc().encode()
+    def __call__(self, request: tuple[str, Any]) -> Any:
+        kind, job = request
+        if kind == "roll":
+            self.actor.load_state_dict({k: torch.from_numpy(v) for k, v in job["actor"].items()})
+            self.normalizer.load_state_dict(job["normalizer"])
+            return roll_part(self.actor, self.normalizer, self.to_env_action, self.stepper,
+                             self.rows, job["num_envs"], torch.from_numpy(job["noise"]),
+                             job["obs"])
+        if kind == "envs":
+            return [pickle.dumps(self.envs.envs[i], protocol=STATE_PROTOCOL) for i in self.rows]
+        raise ValueError(f"unknown request {kind!r}")
 
 
 class RolloutHelper:
@@ -104,16 +94,10 @@ class RolloutHelper:
                              f"got {rows}")
         self.envs, self.rows = envs, rows
         server = _Server(envs, rows, actor, normalizer, to_env_action)
-        self._worker = ForkedWorker(server, name="semdp-rollout")
+        self._worker = Helper.fork(server, name="semdp-rollout")
         self._pending = False
         #: Seconds the helper spent stepping its envs so far.
         self.simulation_s = 0.0
-
-    def _reply(self) -> bytes:
-        reply = self._worker.receive()
-        if reply[:1] == _ERROR:
-            raise RuntimeError(f"rollout helper process failed:\n{reply[1:].decode()}")
-        return reply[1:]
 
     def start(
         self,
@@ -130,7 +114,7 @@ class RolloutHelper:
             "normalizer": normalizer.state_dict(), "num_envs": self.envs.num_envs,
             "noise": noise.numpy(), "obs": np.asarray(obs),
         }  # fmt: skip
-        self._worker.send(_ROLL + pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL))
+        self._worker.send(("roll", job))
         self._pending = True
 
     def result(self) -> RolloutPart:
@@ -138,15 +122,14 @@ class RolloutHelper:
         if not self._pending:
             raise RuntimeError("no rollout is running in the helper")
         self._pending = False
-        part: RolloutPart = pickle.loads(self._reply())
+        part: RolloutPart = self._worker.receive()
         self.simulation_s += part.simulation_s
         return part
 
     def _blobs(self) -> list[bytes]:
         if self._pending:
             raise RuntimeError("the envs were requested while a rollout is running")
-        self._worker.send(_STATE)
-        return pickle.loads(self._reply())
+        return self._worker.request(("envs", None))
 
     def snapshot(self) -> gym.vector.SyncVectorEnv:
         """A copy of the vector env for a checkpoint: the trainer's sub-envs as they are, the

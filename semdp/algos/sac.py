@@ -29,12 +29,13 @@ import numpy.typing as npt
 import torch
 
 from semdp.algos.base import Algorithm
-from semdp.algos.learner_host import InlineLearner, LearnerError, ProcessLearner
+from semdp.algos.learner_host import InlineLearner, ProcessLearner
 from semdp.algos.replay_shared import SharedReplayBuffer
 from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner, networks_state
 from semdp.common.buffers import ReplayBuffer
 from semdp.common.networks import SquashedGaussianActor, TwinQCritic
 from semdp.envs import split_step_infos
+from solvers.workers import HelperError
 
 logger = logging.getLogger(__name__)
 
@@ -360,5 +361,5 @@ class SAC(Algorithm):
         where a failure to copy its state back is only logged: the last checkpoint has it)."""
         try:
             self.close(keep_state=True)
-        except LearnerError as exc:
+        except HelperError as exc:
             logger.warning("learner process state not copied back: %s", exc)

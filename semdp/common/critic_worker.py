@@ -12,8 +12,6 @@ critics will get; see :class:`~semdp.algos.ppo.PPO`).
 from __future__ import annotations
 
 import mmap
-import pickle
-import traceback
 from collections.abc import Sequence
 from typing import Any
 
@@ -21,9 +19,7 @@ import torch
 from torch import nn
 
 from semdp.common.critic_regression import CriticTargets, regress_critics
-from semdp.common.forked_worker import ForkedWorker
-
-_OK, _ERROR, _CANCELLED = b"d", b"e", b"c"
+from solvers.workers import Helper
 
 
 def _numpy_state(state: Any) -> Any:
@@ -60,29 +56,26 @@ class _Server:
         self.critic_r, self.critic_c, self.optimizer = critic_r, critic_c, optimizer
         self.cancel = cancel
 
-    def __call__(self, request: bytes) -> bytes:
-        try:
-            job = pickle.loads(request)
-            self.critic_r.load_state_dict(_torch_state(job["critic_r"]))
-            self.critic_c.load_state_dict(_torch_state(job["critic_c"]))
-            self.optimizer.load_state_dict(_torch_state(job["optimizer"]))
-            obs, ret_r, ret_c = (torch.from_numpy(a) for a in job["targets"])
-            perms = [torch.from_numpy(p) for p in job["perms"]]
-            losses = regress_critics(
-                self.critic_r, self.critic_c, self.optimizer, CriticTargets(obs, ret_r, ret_c),
-                perms, job["minibatch"], job["l2"], job["max_grad_norm"],
-                stop=lambda: self.cancel[0] == 1, autograd=job["autograd"],
-            )
-            if losses is None:
-                return _CANCELLED
-            return _OK + pickle.dumps({
-                "critic_r": _numpy_state(self.critic_r.state_dict()),
-                "critic_c": _numpy_state(self.critic_c.state_dict()),
-                "optimizer": _numpy_state(self.optimizer.state_dict()),
-                "losses": losses,
-            })
-        except Exception:  # reported to the trainer, which raises it
-            return _ERROR + traceback.format_exc().encode()
+    def __call__(self, job: dict[str, Any]) -> dict[str, Any] | None:
+        """The new states and the losses, or None when the regression was cancelled."""
+        self.critic_r.load_state_dict(_torch_state(job["critic_r"]))
+        self.critic_c.load_state_dict(_torch_state(job["critic_c"]))
+        self.optimizer.load_state_dict(_torch_state(job["optimizer"]))
+        obs, ret_r, ret_c = (torch.from_numpy(a) for a in job["targets"])
+        perms = [torch.from_numpy(p) for p in job["perms"]]
+        losses = regress_critics(
+            self.critic_r, self.critic_c, self.optimizer, CriticTargets(obs, ret_r, ret_c),
+            perms, job["minibatch"], job["l2"], job["max_grad_norm"],
+            stop=lambda: self.cancel[0] == 1, autograd=job["autograd"],
+        )
+        if losses is None:
+            return None
+        return {
+            "critic_r": _numpy_state(self.critic_r.state_dict()),
+            "critic_c": _numpy_state(self.critic_c.state_dict()),
+            "optimizer": _numpy_state(self.optimizer.state_dict()),
+            "losses": losses,
+        }
 
 
 class CriticWorker:
@@ -97,8 +90,8 @@ class CriticWorker:
         self, critic_r: nn.Module, critic_c: nn.Module, optimizer: torch.optim.Optimizer
     ) -> None:
         self._cancel = mmap.mmap(-1, 1)
-        self._worker = ForkedWorker(_Server(critic_r, critic_c, optimizer, self._cancel),
-                                    name="semdp-critics")
+        self._worker = Helper.fork(_Server(critic_r, critic_c, optimizer, self._cancel),
+                                   name="semdp-critics")
         self._pending = False
 
     def submit(
@@ -127,7 +120,7 @@ class CriticWorker:
             "minibatch": int(minibatch), "l2": float(l2), "max_grad_norm": max_grad_norm,
             "autograd": bool(autograd),
         }  # fmt: skip
-        self._worker.send(pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL))
+        self._worker.send(job)
         self._pending = True
 
     def cancel(self) -> None:
@@ -136,12 +129,9 @@ class CriticWorker:
             self._cancel[0] = 1
             self._receive()
 
-    def _receive(self) -> bytes:
+    def _receive(self) -> dict[str, Any] | None:
         self._pending = False
-        reply = self._worker.receive()
-        if reply[:1] == _ERROR:
-            raise RuntimeError(f"critic helper process failed:\n{reply[1:].decode()}")
-        return reply
+        return self._worker.receive()
 
     def result(
         self, critic_r: nn.Module, critic_c: nn.Module, optimizer: torch.optim.Optimizer
@@ -153,10 +143,9 @@ class CriticWorker:
         """
         if not self._pending:
             raise RuntimeError("no critic regression is running")
-        reply = self._receive()
-        if reply[:1] != _OK:
+        out = self._receive()
+        if out is None:
             raise RuntimeError("the critic regression was cancelled")
-        out = pickle.loads(reply[1:])
         critic_r.load_state_dict(_torch_state(out["critic_r"]))
         critic_c.load_state_dict(_torch_state(out["critic_c"]))
         optimizer.load_state_dict(_torch_state(out["optimizer"]))

@@ -3,8 +3,8 @@
 CasADi (IPOPT and the LM kernels) keeps the GIL while it evaluates, so Python threads cannot run
 two solves at once: a thread pool of planner clones measured 0.9-1.0x the loop for IPOPT and LM.
 The batch entry point therefore shares the problems with helper processes. Each helper is a
-fresh interpreter (``subprocess``, not ``fork``: safe next to torch's threads, and the caller's
-``__main__`` is not imported again). The pool knows no planner class: it is sent a pickled
+fresh interpreter (:meth:`solvers.workers.Helper.spawn`, not a fork: the caller's state and
+``__main__`` are not copied). The pool knows no planner class: it is sent a pickled
 *factory* (a callable returning a :class:`BatchSolver`), calls it once per planner
 configuration, and solves with the result exactly as ``plan(start, subgoal, obstacles,
 warm_start=False)`` does, certificate included.
@@ -31,16 +31,15 @@ import mmap
 import os
 import pickle
 import struct
-import subprocess
-import sys
 import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
 from functools import partial
-from multiprocessing.connection import Connection, wait
-from pathlib import Path
+from multiprocessing.connection import wait
 from typing import Any, Protocol
+
+from solvers.workers import Helper, HelperError
 
 logger = logging.getLogger(__name__)
 
@@ -57,7 +56,6 @@ MAX_LOST = 3
 _HEADER = 8  # int64 batch id
 _MAIN_ID = 1
 _SIZE = _HEADER + CAPACITY
-_PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
 
 Task = tuple[Any, Any, Any]
 
@@ -103,38 +101,13 @@ def factory_blob(factory: Callable[[], BatchSolver]) -> tuple[bytes, bytes]:
 
 
 class _Helper:
-    """One helper process and the two pipes to it."""
+    """One helper process (:class:`solvers.workers.Helper`) and what the pool knows of it."""
 
     def __init__(self, ident: int, shared_fd: int) -> None:
         self.ident = ident
-        to_child_r, to_child_w = os.pipe()
-        from_child_r, from_child_w = os.pipe()
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(
-            [_PACKAGE_ROOT, *([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])]
-        )
-        for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            env.setdefault(name, "1")
-        try:
-            self.process = subprocess.Popen(
-                [
-                    sys.executable, "-c",
-                    "from solvers.planner.batch import helper_main; helper_main()",
-                    str(to_child_r), str(from_child_w), str(shared_fd), str(ident),
-                ],
-                pass_fds=(to_child_r, from_child_w, shared_fd),
-                env=env,
-                stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL,
-                # its own session: a Ctrl-C in the terminal interrupts the caller only (the helper
-                # ends when its pipe closes), and the helper is scheduled as its own group
-                start_new_session=True,
-            )
-        finally:
-            os.close(to_child_r)
-            os.close(from_child_w)
-        self.inbox = Connection(to_child_w, readable=False)
-        self.outbox = Connection(from_child_r, writable=False)
+        self.process = Helper.spawn(
+            "solvers.planner.batch:BatchServer", f"planner-batch-{ident}",
+            argv=(shared_fd, ident), pass_fds=(shared_fd,), quiet=True)
         self.ready: set[bytes] = set()  # planner digests registered and warmed up
         self.asked: set[bytes] = set()  # digests sent for registration
         self.outstanding = 0  # batches sent and not answered yet
@@ -143,44 +116,35 @@ class _Helper:
     def send(self, message: object) -> bool:
         """Send ``message``; False when the helper has gone or the message does not pickle."""
         try:
-            self.inbox.send(message)
+            self.process.send(message)
             return True
-        except OSError:
+        except HelperError:
             self.close()
         except Exception as error:  # pickling fails before anything is written
             logger.warning("could not send a batch to planner helper %d: %r", self.ident, error)
         return False
 
+    def poll(self) -> bool:
+        """Whether a message (or the helper's end) can be read now."""
+        return self.alive and self.process.poll(0)
+
     def receive(self) -> tuple[Any, ...] | None:
         """The next message, or None when the helper has gone."""
         try:
-            return self.outbox.recv()
-        except (EOFError, OSError):
+            return self.process.receive()
+        except HelperError as error:
+            logger.warning("%s", str(error).splitlines()[0])
             self.close()
             return None
 
     def close(self, *, wait_s: float = 0.0) -> None:
-        if self.alive:
-            self.alive = False
-            for connection in (self.inbox, self.outbox):
-                try:
-                    connection.close()
-                except OSError:  # pragma: no cover
-                    pass
-        if wait_s > 0:
-            try:
-                self.process.wait(timeout=wait_s)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
+        self.alive = False
+        self.process.close(timeout=max(wait_s, 0.1))
 
     def abandon(self) -> None:
-        """Drop the pipes inherited by a forked child without touching the helper."""
-        for connection in (self.inbox, self.outbox):
-            try:
-                connection.close()
-            except OSError:  # pragma: no cover
-                pass
+        """Drop a helper inherited through a fork (its owner keeps it)."""
         self.alive = False
+        self.process.close()
 
 
 class HelperPool:
@@ -268,7 +232,7 @@ class HelperPool:
 
     def _drain(self, helpers: Sequence[_Helper]) -> None:
         for helper in helpers:
-            while helper.alive and helper.outbox.poll(0):
+            while helper.poll():
                 message = helper.receive()
                 if message is not None:
                     self._handle(helper, message)
@@ -291,11 +255,10 @@ class HelperPool:
             alive = [h for h in self.helpers[:count] if h.alive]
             if len(ready) == len(alive) or time.monotonic() >= deadline:
                 return len(ready)
-            wait([h.outbox for h in alive], timeout=max(0.0, deadline - time.monotonic()))
+            wait([h.process.connection for h in alive],
+                 timeout=max(0.0, deadline - time.monotonic()))
 
     def shutdown(self) -> None:
-        for helper in self.helpers:
-            helper.close()
         for helper in self.helpers:
             helper.close(wait_s=2.0)
         self.helpers = []
@@ -363,10 +326,6 @@ class HelperPool:
 
     def _await(self, helper: _Helper, bid: int) -> list[tuple[int, Any]]:
         while helper.alive:
-            if not wait([helper.outbox], timeout=1.0):
-                if helper.process.poll() is not None:
-                    helper.close()
-                continue
             message = helper.receive()
             if message is None:
                 break
@@ -429,45 +388,48 @@ atexit.register(shutdown_pool)
 
 
 # -------------------------------------------------------------------- helper side
-def helper_main() -> None:
-    """Entry point of a helper process (``python -c``; arguments: fds and id)."""
-    read_fd, write_fd, shared_fd, ident = (int(a) for a in sys.argv[1:5])
-    inbox = Connection(read_fd, writable=False)
-    outbox = Connection(write_fd, readable=False)
-    shared = mmap.mmap(shared_fd, _SIZE)
-    planners: dict[bytes, BatchSolver] = {}
-    while True:
-        try:
-            message = inbox.recv()
-        except (EOFError, OSError):
-            return
+class BatchServer:
+    """A helper's handler (``argv``: the shared page's descriptor and the helper's id).
+
+    Requests: ``("register", digest, factory blob)`` builds and warms up a planner
+    (reply ``("registered", digest, error or None)``); ``("batch", id, digest, tasks, offset)``
+    claims and solves problems from ``offset`` on (reply ``("done", id, [(k, result), ...])``).
+    """
+
+    def __init__(self, shared_fd: str, ident: str) -> None:
+        self.shared = mmap.mmap(int(shared_fd), _SIZE)
+        self.ident = int(ident)
+        self.planners: dict[bytes, BatchSolver] = {}
+
+    def __call__(self, message: tuple[Any, ...]) -> tuple[Any, ...]:
         if message[0] == "register":
             _, digest, blob = message
             try:
                 planner = pickle.loads(blob)()
                 planner.warmup()
-                planners[digest] = planner
-                outbox.send(("registered", digest, None))
+                self.planners[digest] = planner
+                return ("registered", digest, None)
             except Exception as error:
-                outbox.send(("registered", digest, repr(error)))
-        elif message[0] == "batch":
-            _, bid, digest, tasks, offset = message
-            planner = planners[digest]
-            solved: list[tuple[int, Any]] = []
-            n = len(tasks)
-            for step in range(n):
-                k = (offset + step) % n
-                if struct.unpack_from("<q", shared, 0)[0] != bid:
-                    break
-                if shared[_HEADER + k]:
-                    continue
-                shared[_HEADER + k] = ident
-                value = _attempt(partial(solve_task, planner), tasks[k])
-                if isinstance(value, _Failure):
-                    try:
-                        pickle.dumps(value.error)
-                    except Exception:
-                        value = _Failure(RuntimeError(repr(value.error)))
-                solved.append((k, value))
-            outbox.send(("done", bid, solved))
+                return ("registered", digest, repr(error))
+        _, bid, digest, tasks, offset = message
+        return ("done", bid, self._claim_and_solve(bid, self.planners[digest], tasks, offset))
 
+    def _claim_and_solve(self, bid: int, planner: BatchSolver, tasks: Sequence[Task],
+                         offset: int) -> list[tuple[int, Any]]:
+        shared, solved = self.shared, []
+        n = len(tasks)
+        for step in range(n):
+            k = (offset + step) % n
+            if struct.unpack_from("<q", shared, 0)[0] != bid:
+                break
+            if shared[_HEADER + k]:
+                continue
+            shared[_HEADER + k] = self.ident
+            value = _attempt(partial(solve_task, planner), tasks[k])
+            if isinstance(value, _Failure):
+                try:
+                    pickle.dumps(value.error)
+                except Exception:
+                    value = _Failure(RuntimeError(repr(value.error)))
+            solved.append((k, value))
+        return solved
