@@ -35,6 +35,7 @@ from semdp.common.seeding import seed_everything
 from semdp.envs import make_vec_env
 from semdp.paths import CONF_DIR
 from semdp.run_logging import progress_logging
+from solvers.workers import HelperError
 
 logger = logging.getLogger(__name__)
 
@@ -230,6 +231,15 @@ def main(cfg: DictConfig) -> float | None:
         if not multirun:  # one line naming the key, no traceback
             raise SystemExit(f"semdp-train: {exc}") from None
         logger.error("bad config (the sweep continues): %s", exc)
+        return None
+    except HelperError as exc:  # one line naming the helper; the traceback is in error.txt
+        resume = cfg.get("resume")
+        run_dir = resume if resume and resume != "auto" else hydra_cfg.runtime.output_dir
+        line = (f"{str(exc).splitlines()[0]}; the last checkpoint is kept, continue with: "
+                f"semdp-train resume={run_dir}")
+        if not multirun:
+            raise SystemExit(f"semdp-train: {line}") from None
+        logger.error("run failed (the sweep continues): %s", line)
         return None
     except Exception as exc:
         if not multirun:

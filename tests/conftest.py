@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from omegaconf import DictConfig
+import torch
+from omegaconf import DictConfig, open_dict
 
 from semdp.configs import compose_config
 
@@ -27,12 +28,34 @@ TINY_ALGO = {
 }
 
 
+@pytest.fixture(autouse=True)
+def _one_torch_thread() -> Iterator[None]:
+    """Every test runs torch on one thread, as the training app does (``torch_threads``), so no
+    number depends on the machine's cores or ``OMP_NUM_THREADS``."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def pin_helpers(cfg: DictConfig) -> DictConfig:
+    """Replace the on-policy helpers' ``auto`` by the single-process path (``auto`` decides by
+    the machine's load; tests choose a path: ``loop=helpers`` or explicit keys for the other)."""
+    with open_dict(cfg):
+        if cfg.algo.get("vectorization") == "auto":
+            cfg.algo.vectorization = "sync"
+        if cfg.algo.get("parallel_critics") == "auto":
+            cfg.algo.parallel_critics = False
+    return cfg
+
+
 @pytest.fixture
 def compose_train() -> Callable[..., DictConfig]:
-    """``compose_train(*overrides)`` -> the composed ``train`` config (no Hydra app running)."""
+    """``compose_train(*overrides)`` -> the composed ``train`` config (no Hydra app running),
+    helper paths pinned (:func:`pin_helpers`)."""
 
     def _compose(*overrides: str) -> DictConfig:
-        return compose_config("train", overrides)
+        return pin_helpers(compose_config("train", overrides))
 
     return _compose
 

@@ -27,8 +27,8 @@ from solvers.workers import fork_available
 
 pytestmark = pytest.mark.skipif(not fork_available(), reason="helpers need fork")
 
-SYNC = ("+algo.vectorization=sync", "+algo.parallel_critics=false")
-ASYNC = ("+algo.vectorization=async", "+algo.parallel_critics=true")
+SYNC = ("algo.vectorization=sync", "algo.parallel_critics=false")
+ASYNC = ("algo.vectorization=async", "algo.parallel_critics=true")
 
 
 def _rows(path: Path) -> list[dict[str, str]]:

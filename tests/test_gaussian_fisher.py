@@ -89,7 +89,7 @@ def test_trpo_and_cpo_steps_agree_with_the_autograd_product(
     for product in ("written", "autograd"):
         torch.manual_seed(0)
         trainer = build_algorithm(tiny_train(algo, f"algo.gradients={product}",
-                                             "+algo.vectorization=sync"))
+                                             "algo.vectorization=sync"))
         stats = trainer.collect_rollout()
         trainer.before_update(stats)
         before = parameters_to_vector(trainer.actor.parameters()).detach().clone()

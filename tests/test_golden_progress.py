@@ -1,12 +1,17 @@
-"""Same seed => the same learning curve: two ``budget=ci`` runs against progress files recorded
-before the config and module restructuring (tests/data/golden, commit d56383e).
+"""Same seed => the same learning curve, whatever the machine's load and thread count (every
+run sets torch to ``torch_threads`` = 1 threads, and helper processes run one thread each).
 
 Wall-clock columns (``wall_time_s``, ``fps``, ``time_*``) are excluded; every other column the
-golden file has must match to 1e-9 relative (exact on the machine that recorded them). Defaults
-changed on purpose since then are switched back to the recorded setting by the overrides below
-(the IPOPT rescue for the Point and the low-level safety filter, which the recording did not
-have; evaluations in one process, whose smaller policy batches round differently otherwise;
-the critics' regression through autograd, whose summation order the stacked path changes).
+golden file has must match to 1e-9 relative (exact on machines of this project's kind).
+
+* Files recorded before the config and module restructuring (commit d56383e), with the defaults
+  changed since switched back to the recorded setting (the IPOPT rescue for the Point and the
+  low-level safety filter, which the recording did not have; evaluations in one process; the
+  critics' regression through autograd).
+* Files that pin today's defaults: PPO-Lag with the written-out derivatives and two evaluation
+  processes, checked with every helper off (``loop=single``) and on (``loop=helpers``), which
+  must give the same numbers; the SEMDP main job's pipelined loop (lockstep envs, a learner
+  process) past ``learning_starts``, so the learner's updates are pinned too.
 """
 
 from __future__ import annotations
@@ -38,7 +43,9 @@ def _same(a: str, b: str) -> bool:
 
 
 def _is_clock(column: str) -> bool:
-    return column in ("wall_time_s", "fps") or column.startswith("time_")
+    """Wall-clock columns, and the record of which helpers ran (the numbers do not depend on it)."""
+    return (column in ("wall_time_s", "fps", "rollout_helper", "critic_helper")
+            or column.startswith("time_"))
 
 
 @pytest.mark.parametrize(
@@ -49,16 +56,33 @@ def _is_clock(column: str) -> bool:
           "algo.gradients=autograd"]),
         ("semdp_ci_s0.csv", ["experiment=semdp", "budget=ci", "seed=0", "loop=sequential",
                              "robot.rescue_backend=null", "env.shield=null", "eval_workers=1"]),
+        ("ppo_lag_point_goal1_ci_s0_written.csv",
+         ["algo=ppo_lag", "env=point_goal1", "budget=ci", "seed=0", "loop=single",
+          "eval_workers=2"]),
+        ("ppo_lag_point_goal1_ci_s0_written.csv",
+         ["algo=ppo_lag", "env=point_goal1", "budget=ci", "seed=0", "loop=helpers"]),
+        ("semdp_pipelined_s0.csv",
+         ["experiment=semdp", "budget=ci", "seed=0", "total_steps=2400",
+          "algo.learning_starts=800", "tensorboard=false"]),
     ],
+    ids=["ppo_lag_d56383e", "semdp_sequential_d56383e", "ppo_lag_helpers_off",
+         "ppo_lag_helpers_on", "semdp_pipelined"],
 )
 def test_progress_matches_golden(
     compose_train: Callable[..., DictConfig], tmp_path: Path, golden: str, overrides: list[str]
 ) -> None:
     run_dir = tmp_path / "run"
-    run(compose_train(*overrides), run_dir)
+    cfg = compose_train(*overrides)
+    if "loop=helpers" in overrides:  # the helper path, every epoch
+        assert (cfg.algo.vectorization, cfg.algo.parallel_critics) == ("async", True)
+    run(cfg, run_dir)
     expected = _rows(GOLDEN / golden)
     actual = _rows(run_dir / "progress.csv")
     assert len(actual) == len(expected)
+    if "loop=helpers" in overrides:  # progress.csv records the helpers taken
+        assert all(r["rollout_helper"] == "1.0" and r["critic_helper"] == "1.0" for r in actual)
+    if "loop=single" in overrides:
+        assert all(r["rollout_helper"] == "0.0" and r["critic_helper"] == "0.0" for r in actual)
     for row_expected, row_actual in zip(expected, actual, strict=True):
         for column, value in row_expected.items():
             if _is_clock(column):

@@ -74,8 +74,8 @@ def test_ppo_update_written_or_autograd_gives_the_same_actor(
     for gradients in ("written", "autograd"):
         torch.manual_seed(0)
         trainer = build_algorithm(tiny_train("ppo_lag", f"algo.gradients={gradients}",
-                                             "+algo.vectorization=sync",
-                                             "+algo.parallel_critics=false"))
+                                             "algo.vectorization=sync",
+                                             "algo.parallel_critics=false"))
         stats = trainer.collect_rollout()
         trainer.before_update(stats)
         out = trainer._update(trainer.compute_batch())

@@ -24,10 +24,9 @@ from omegaconf import DictConfig, open_dict
 
 import semdp.algos.sac as sac_module
 from semdp.algos.learner_host import ProcessLearner
-from semdp.algos.replay_shared import SharedReplayBuffer
+from semdp.algos.replay_shared import FIELDS, SharedReplayBuffer
 from semdp.algos.sac import SAC
 from semdp.algos.twin_q import FusedTwinQ
-from semdp.common.buffers import ReplayBuffer
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import TwinQCritic
 from semdp.train import build_algorithm, run
@@ -78,20 +77,28 @@ def test_fused_twin_q_is_the_twin_critic() -> None:
 
 
 @pytest.mark.parametrize("shared", [False, True])
-def test_shared_replay_buffer_is_the_replay_buffer(shared: bool) -> None:
-    plain, ours = ReplayBuffer(10, 3, 2), SharedReplayBuffer(10, 3, 2, shared=shared)
+def test_replay_buffer_is_a_ring_of_the_latest_rows(shared: bool) -> None:
+    """Oracle: transition number ``t`` (counted over all batches) sits in row ``t % capacity``
+    while it is among the latest ``capacity`` ones."""
+    ours = SharedReplayBuffer(10, 3, 2, shared=shared)
     rng = np.random.default_rng(0)
+    stream: dict[str, list[np.ndarray]] = {name: [] for name in FIELDS}
     for n in (4, 3, 5, 12, 1):  # wraps around, and one batch larger than the capacity
-        batch = (rng.normal(size=(n, 3)), rng.normal(size=(n, 2)), rng.normal(size=n),
-                 rng.normal(size=n), rng.normal(size=(n, 3)), rng.integers(0, 2, n))
-        plain.add_batch(*batch)
-        ours.add_batch(*batch)
-        assert (ours.pos, ours.size) == (plain.pos, plain.size)
-        for name in ("obs", "next_obs", "actions", "rewards", "costs", "terminated"):
-            np.testing.assert_array_equal(ours.arrays[name], getattr(plain, name))
-            np.testing.assert_array_equal(ours.tensors[name].numpy(), getattr(plain, name))
+        batch = {"obs": rng.normal(size=(n, 3)), "actions": rng.normal(size=(n, 2)),
+                 "rewards": rng.normal(size=n), "costs": rng.normal(size=n),
+                 "next_obs": rng.normal(size=(n, 3)), "terminated": rng.integers(0, 2, n)}
+        ours.add_batch(batch["obs"], batch["actions"], batch["rewards"], batch["costs"],
+                       batch["next_obs"], batch["terminated"])
+        for name in FIELDS:
+            stream[name].extend(batch[name].astype(np.float32))
+        total = len(stream["obs"])
+        assert (ours.pos, ours.size) == (total % 10, min(total, 10))
+        for t in range(max(0, total - 10), total):
+            for name in FIELDS:
+                np.testing.assert_array_equal(ours.arrays[name][t % 10], stream[name][t])
+                np.testing.assert_array_equal(ours.tensors[name][t % 10].numpy(),
+                                              stream[name][t])
     state = ours.state_dict()
-    assert set(state) == set(plain.state_dict())
     again = SharedReplayBuffer(10, 3, 2)
     again.load_state_dict(state)
     np.testing.assert_array_equal(again.arrays["obs"], ours.arrays["obs"])

@@ -121,7 +121,10 @@ class OnPolicyAlgorithm(Algorithm):
             last bits, the learning curves within noise).
     """
 
-    base_columns: tuple[str, ...] = ("loss_v", "loss_vc", "entropy", "kl")
+    #: ``rollout_helper``/``critic_helper``: 1 where the epoch used that helper (the choice of
+    #: ``auto`` recorded).
+    base_columns: tuple[str, ...] = ("loss_v", "loss_vc", "entropy", "kl", "rollout_helper",
+                                     "critic_helper")
 
     def __init__(
         self,
@@ -255,6 +258,7 @@ class OnPolicyAlgorithm(Algorithm):
         if step_s < ASYNC_MIN_STEP_S:  # cheaper than the pipe to a helper: the envs stay here
             self._env_choice.disallow()
         stats = self._value_rollout(part)
+        stats["rollout_helper"] = float(helper is not None)
         self._env_choice.record(self.envs_in_helper, perf() - rollout_start)
         return stats
 
@@ -340,7 +344,7 @@ class OnPolicyAlgorithm(Algorithm):
             autograd=self.autograd_only,
         )
         assert losses is not None  # no stop condition here
-        return {"loss_v": losses[0], "loss_vc": losses[1]}
+        return {"loss_v": losses[0], "loss_vc": losses[1], "critic_helper": 0.0}
 
     def start_critic_update(self, batch: RolloutBatch, skip: int) -> _CriticJob | None:
         """Start the critic regression in the helper, if it is used for this update (else
@@ -393,6 +397,7 @@ class OnPolicyAlgorithm(Algorithm):
                 self._critic_worker.cancel()
             stats = self.update_critics(batch)
         self._critic_choice.record(job is not None, time.perf_counter() - self._update_start)
+        stats["critic_helper"] = float(job is not None and job.skip == drawn)
         return stats
 
     # ----------------------------------------------------------------- helpers and state

@@ -1,8 +1,7 @@
-"""SAC's replay buffer in torch tensors that a learner process can share (semdp/README.md,
-"SAC learner process").
+"""SAC's replay buffer, in torch tensors that a learner process can share (semdp/README.md,
+"SAC learner process"); every SAC loop uses it.
 
-The same storage and checkpoint format as :class:`semdp.common.buffers.ReplayBuffer`; the rows
-live in torch tensors, written through NumPy views by the collecting process and read with
+The rows live in torch tensors, written through NumPy views by the collecting process and read with
 ``index_select`` by :class:`~semdp.algos.sac_learner.SACLearner`. With ``shared`` the tensors
 are views of one memory-mapped file that is unlinked at once (in ``/dev/shm`` where it exists):
 its descriptor, handed to the learner process (:func:`attach`), is the only name it has, so
@@ -82,7 +81,7 @@ class SharedReplayBuffer:
             start += take
 
     def state_dict(self) -> dict[str, Any]:
-        """Filled part of the storage and the write position (ReplayBuffer's format)."""
+        """Filled part of the storage and the write position."""
         n = self.size
         return {"pos": self.pos, "size": n,
                 **{name: self.arrays[name][:n].copy() for name in FIELDS}}

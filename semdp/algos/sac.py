@@ -8,16 +8,16 @@ recorded in the replay buffer and logged, which is what the Safety-Embedded MDP'
 needs (thesis §3.5.1). Works on any gymnasium env with a Box action space; actions are
 tanh-squashed to [-1, 1] and scaled to the bounds.
 
-Two loops (``learner``): ``sequential`` -- each env step is followed by its updates, in this
-process; ``process`` / ``inline`` -- collection proceeds in rounds of ``sync_every`` env steps
-while the updates earned by the previous round run, in a learner process on another core
-(``process``) or in this process after the round (``inline``, the same numbers); the collector
-acts with the weights of the last finished round (semdp/README.md, "SAC learner process").
+One update (:class:`~semdp.algos.sac_learner.SACLearner`), three loops (``learner``):
+``sequential`` -- each vector step is stored, then its updates run, in this process;
+``process`` / ``inline`` -- collection proceeds in rounds of ``sync_every`` env steps while the
+updates earned by the previous round run, in a learner process on another core (``process``) or
+in this process after the round (``inline``, the same numbers); the collector acts with the
+weights of the last finished round (semdp/README.md, "SAC learner process").
 """
 
 from __future__ import annotations
 
-import copy
 import logging
 import math
 import time
@@ -31,9 +31,7 @@ import torch
 from semdp.algos.base import Algorithm
 from semdp.algos.learner_host import InlineLearner, ProcessLearner
 from semdp.algos.replay_shared import SharedReplayBuffer
-from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner, networks_state
-from semdp.common.buffers import ReplayBuffer
-from semdp.common.networks import SquashedGaussianActor, TwinQCritic
+from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
 from semdp.envs import split_step_infos
 from solvers.workers import HelperError
 
@@ -125,21 +123,10 @@ class SAC(Algorithm):
         self.learner_threads = int(learner_threads)
         self.round_steps = max(1, math.ceil(sync_every / self.num_envs))
         #: Seconds spent on learning as seen by this process (bench: ``semdp-bench semdp``).
-        self.timing: dict[str, float] = {"update_s": 0.0, "learner_wait_s": 0.0,
+        self.timing: dict[str, float] = {"learner_wait_s": 0.0,
                                          "learner_busy_s": 0.0, "learner_cpu_s": 0.0}
-        self._updates = 0
         self._update_credit = 0.0
         self._host: InlineLearner | ProcessLearner | None = None
-        if learner == "sequential":
-            self.actor = SquashedGaussianActor(self.obs_dim, self.act_dim, hidden)
-            self.critic = TwinQCritic(self.obs_dim, self.act_dim, hidden)
-            self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
-            self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=actor_lr)
-            self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=critic_lr)
-            self.log_alpha = torch.tensor(math.log(alpha), requires_grad=True)
-            self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=alpha_lr)
-            self.buffer = ReplayBuffer(buffer_size, self.obs_dim, self.act_dim)
-            return
         self.buffer = SharedReplayBuffer(buffer_size, self.obs_dim, self.act_dim,
                                          shared=learner == "process")
         settings = LearnerSettings(
@@ -167,111 +154,79 @@ class SAC(Algorithm):
                               deterministic)
         return self.to_env_action(a.numpy())
 
-    def _update(self) -> dict[str, float]:
-        batch = self.buffer.sample(self.batch_size)
-        alpha = self.log_alpha.exp().detach()
-        with torch.no_grad():
-            next_a, next_logp = self.actor(batch.next_obs)
-            q1_t, q2_t = self.critic_target(batch.next_obs, next_a)
-            soft_v = torch.min(q1_t, q2_t) - alpha * next_logp
-            target = batch.rewards + self.gamma * (1.0 - batch.terminated) * soft_v
-        q1, q2 = self.critic(batch.obs, batch.actions)
-        loss_q = ((q1 - target) ** 2).mean() + ((q2 - target) ** 2).mean()
-        self.critic_optimizer.zero_grad()
-        loss_q.backward()
-        self.critic_optimizer.step()
-        self._updates += 1
-        out = {"loss_q": loss_q.item(), "q_mean": q1.mean().item()}
-        if self._updates % self.policy_frequency == 0:
-            for _ in range(self.policy_frequency):
-                a, logp = self.actor(batch.obs)
-                q1_pi, q2_pi = self.critic(batch.obs, a)
-                loss_pi = (self.log_alpha.exp().detach() * logp - torch.min(q1_pi, q2_pi)).mean()
-                self.actor_optimizer.zero_grad()
-                loss_pi.backward()
-                self.actor_optimizer.step()
-                out.update(loss_pi=loss_pi.item(), entropy=-logp.mean().item())
-                if self.autotune:
-                    loss_alpha = -(self.log_alpha * (logp.detach() + self.target_entropy)).mean()
-                    self.alpha_optimizer.zero_grad()
-                    loss_alpha.backward()
-                    self.alpha_optimizer.step()
-        with torch.no_grad():
-            for p, p_t in zip(self.critic.parameters(), self.critic_target.parameters(),
-                              strict=True):
-                p_t.mul_(1 - self.tau).add_(self.tau * p)
-        return out
-
     def train_epoch(self) -> dict[str, float]:
-        """``steps_per_epoch`` env steps and ``updates_per_step`` updates per env step."""
-        if self.learner == "sequential":
-            return self._train_epoch_sequential()
-        return self._train_epoch_rounds()
-
-    def _train_epoch_sequential(self) -> dict[str, float]:
-        """Each env step followed by its updates (the loop of CleanRL's SAC)."""
+        """``steps_per_epoch`` env steps and ``updates_per_step`` updates per env step: rounds
+        of one vector step whose updates follow it (``sequential``) or of ``sync_every`` steps
+        whose updates run during the next round (``process``, ``inline``)."""
         logs: dict[str, list[float]] = {k: [] for k in self.extra_columns}
-        for _ in range(self.n_steps):
-            if self.env_steps < self.learning_starts:
-                unit = torch.rand(self.num_envs, self.act_dim) * 2 - 1
-            else:
-                with torch.no_grad():
-                    unit, _ = self.actor(torch.as_tensor(self._obs, dtype=torch.float32))
-            next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
-            ended = np.logical_or(term, trunc)
-            costs, final_obs = split_step_infos(next_obs, infos, ended)
-            self.buffer.add_batch(self._obs, unit.numpy(), rewards, costs,
-                                  self._flat_obs(final_obs), term.astype(np.float32))
-            self._track(rewards, costs, ended)
-            self._obs = self._flat_obs(next_obs)
-            self.env_steps += self.num_envs
-            if self.env_steps >= self.learning_starts and self.buffer.size >= self.batch_size:
-                self._update_credit += self.updates_per_step * self.num_envs
-                start = time.perf_counter()
-                while self._update_credit >= 1.0:
-                    self._update_credit -= 1.0
-                    for k, v in self._update().items():
-                        logs[k].append(v)
-                self.timing["update_s"] += time.perf_counter() - start
+        if self.env_steps + self.steps_per_epoch >= self.learning_starts:
+            self._ensure_host()  # a learner process starts while this epoch collects
+        if self.learner == "sequential":
+            for _ in range(self.n_steps):
+                staged, owed = self._collect(1)
+                self._store(staged)
+                self._ensure_host().start(owed, self.buffer.size)
+                self._finish_round(logs)
+        else:
+            owed, done = 0, 0
+            while done < self.n_steps or owed:
+                if owed:
+                    self._ensure_host().start(owed, self.buffer.size)
+                steps = min(self.round_steps, self.n_steps - done)
+                staged, owed = self._collect(steps)
+                done += steps
+                self._finish_round(logs)
+                self._store(staged)
         self.epoch += 1
         row = {k: float(np.mean(v)) if v else math.nan for k, v in logs.items()}
         row["alpha"] = self.alpha
         return {**self._pop_episode_stats(), **row}
 
+    def _collect(self, steps: int) -> tuple[list[tuple[np.ndarray, ...]], int]:
+        """``steps`` vector steps with the current actor (uniform actions before
+        ``learning_starts``); the transitions to store and the updates they earned."""
+        staged: list[tuple[np.ndarray, ...]] = []
+        owed = 0
+        for _ in range(steps):
+            if self.env_steps < self.learning_starts:
+                unit = torch.rand(self.num_envs, self.act_dim) * 2 - 1
+            else:
+                with torch.inference_mode():
+                    unit, _ = self.actor(torch.as_tensor(self._obs, dtype=torch.float32))
+            next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
+            ended = np.logical_or(term, trunc)
+            costs, final_obs = split_step_infos(next_obs, infos, ended)
+            staged.append((self._obs, unit.numpy(), rewards, costs,
+                           self._flat_obs(final_obs), term.astype(np.float32)))
+            self._track(rewards, costs, ended)
+            self._obs = self._flat_obs(next_obs)
+            self.env_steps += self.num_envs
+            stored = min(self.buffer.size + len(staged) * self.num_envs, self.buffer.capacity)
+            if self.env_steps >= self.learning_starts and stored >= self.batch_size:
+                self._update_credit += self.updates_per_step * self.num_envs
+                while self._update_credit >= 1.0:
+                    self._update_credit -= 1.0
+                    owed += 1
+        return staged, owed
+
+    def _store(self, staged: list[tuple[np.ndarray, ...]]) -> None:
+        if staged:
+            self.buffer.add_batch(*(np.concatenate(part) for part in zip(*staged, strict=True)))
+
     def state_dict(self) -> dict[str, Any]:
-        """Networks, optimisers, temperature and the replay buffer."""
-        if self.learner != "sequential":
-            learner = self._host.state_dict() if self._host is not None else \
-                self._core.state_dict()
-            return {**super().state_dict(), **learner, "buffer": self.buffer.state_dict(),
-                    "update_credit": self._update_credit}
-        return {
-            **super().state_dict(),
-            **networks_state(self),
-            "buffer": self.buffer.state_dict(),
-            "updates": (self._updates, self._update_credit),
-        }
+        """Networks, optimisers, temperature, the learner's generator and the replay buffer."""
+        learner = self._host.state_dict() if self._host is not None else self._core.state_dict()
+        return {**super().state_dict(), **learner, "buffer": self.buffer.state_dict(),
+                "update_credit": self._update_credit}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
         super().load_state_dict(state)
-        if self.learner != "sequential":
-            self._core.load_state_dict(state)
-            if self._host is not None:
-                self._host.load_state_dict(state)
-            self.buffer.load_state_dict(state["buffer"])
-            self._update_credit = state["update_credit"]
-            return
-        self.actor.load_state_dict(state["actor"])
-        self.critic.load_state_dict(state["critic"])
-        self.critic_target.load_state_dict(state["critic_target"])
-        self.actor_optimizer.load_state_dict(state["actor_optimizer"])
-        self.critic_optimizer.load_state_dict(state["critic_optimizer"])
-        with torch.no_grad():
-            self.log_alpha.fill_(state["log_alpha"])
-        self.alpha_optimizer.load_state_dict(state["alpha_optimizer"])
+        self._core.load_state_dict(state)
+        if self._host is not None:
+            self._host.load_state_dict(state)
         self.buffer.load_state_dict(state["buffer"])
-        self._updates, self._update_credit = state["updates"]
+        self._update_credit = state["update_credit"]
 
     # ----------------------------------------------------------------- rounds (learner process)
     def _ensure_host(self) -> InlineLearner | ProcessLearner:
@@ -297,47 +252,6 @@ class SAC(Algorithm):
         with torch.no_grad():
             self.log_alpha.fill_(out["log_alpha"])
         host.pull_actor(self.actor)
-
-    def _train_epoch_rounds(self) -> dict[str, float]:
-        """Rounds of ``round_steps`` vector steps; the updates earned by one round run during
-        the next (or at the end of the epoch), on the replay rows stored before it began."""
-        logs: dict[str, list[float]] = {k: [] for k in self.extra_columns}
-        if self.env_steps + self.steps_per_epoch >= self.learning_starts:
-            self._ensure_host()  # a learner process starts while this epoch collects
-        owed, done = 0, 0
-        while done < self.n_steps or owed:
-            if owed:
-                self._ensure_host().start(owed, self.buffer.size)
-            owed, staged = 0, []
-            for _ in range(min(self.round_steps, self.n_steps - done)):
-                if self.env_steps < self.learning_starts:
-                    unit = torch.rand(self.num_envs, self.act_dim) * 2 - 1
-                else:
-                    with torch.inference_mode():
-                        unit, _ = self.actor(torch.as_tensor(self._obs, dtype=torch.float32))
-                next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
-                ended = np.logical_or(term, trunc)
-                costs, final_obs = split_step_infos(next_obs, infos, ended)
-                staged.append((self._obs, unit.numpy(), rewards, costs,
-                               self._flat_obs(final_obs), term.astype(np.float32)))
-                self._track(rewards, costs, ended)
-                self._obs = self._flat_obs(next_obs)
-                self.env_steps += self.num_envs
-                stored = min(self.buffer.size + len(staged) * self.num_envs, self.buffer.capacity)
-                if self.env_steps >= self.learning_starts and stored >= self.batch_size:
-                    self._update_credit += self.updates_per_step * self.num_envs
-                    while self._update_credit >= 1.0:
-                        self._update_credit -= 1.0
-                        owed += 1
-                done += 1
-            self._finish_round(logs)
-            if staged:
-                self.buffer.add_batch(*(np.concatenate(part) for part in zip(*staged,
-                                                                             strict=True)))
-        self.epoch += 1
-        row = {k: float(np.mean(v)) if v else math.nan for k, v in logs.items()}
-        row["alpha"] = self.alpha
-        return {**self._pop_episode_stats(), **row}
 
     def learn(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
         """:meth:`Algorithm.learn`; a learner process lives only as long as this call (on an

@@ -1,12 +1,14 @@
-"""The learning half of SAC (Haarnoja et al. 2018) as an object that can run in its own process
-(semdp/README.md, "SAC learner process"; the high level of thesis Alg. 2).
+"""The learning half of SAC (Haarnoja et al. 2018): SAC's only update, run in the training process
+or in a process of its own (semdp/README.md, "SAC learner process"; the high level of thesis
+Alg. 2).
 
 :class:`SACLearner` owns the actor, the fused twin critic (:class:`~semdp.algos.twin_q.FusedTwinQ`)
 and its target, the three optimisers and the temperature, and runs ``n`` gradient updates on
-the replay rows it is told are filled. The update is :class:`semdp.algos.sac.SAC`'s (CleanRL's):
-clipped double-Q target with the entropy term, policy delay ``policy_frequency`` (then that many
-actor and temperature steps), Polyak-averaged target critics; it only drops work whose result is
-discarded (critic weight gradients of the actor loss). Randomness (minibatch indices, the
+the replay rows it is told are filled, for every loop of :class:`semdp.algos.sac.SAC`. The
+update is CleanRL's: clipped double-Q target with the entropy term, policy delay
+``policy_frequency`` (then that many actor and temperature steps), Polyak-averaged target
+critics; it only drops work whose result is discarded (critic weight gradients of the actor
+loss). Randomness (minibatch indices, the
 policy's reparameterisation noise) comes from the learner's own generator, so the learner gives
 the same numbers in the training process and in a process of its own.
 """

@@ -84,7 +84,7 @@ def measure(steps: int, overrides: list[str]) -> dict[str, Any]:
         return float(learn1.get(key, 0.0) - learn0.get(key, 0.0))
 
     split = {name: inside1[key] - inside0[key] for name, key in PARTS}
-    split["learning"] = delta("update_s") + delta("learner_wait_s")
+    split["learning"] = delta("learner_wait_s")
     split["other"] = max(wall - sum(split.values()), 0.0)
     return {
         "env": str(cfg.env.id), "num_envs": algo.num_envs,

@@ -56,9 +56,9 @@ def measure(
         overrides.append(f"algo.learning_starts={min(1000, steps_per_epoch)}")
     else:
         if vectorization:
-            overrides.append(f"+algo.vectorization={vectorization}")
+            overrides.append(f"algo.vectorization={vectorization}")
         if parallel_critics:
-            overrides.append(f"+algo.parallel_critics={parallel_critics}")
+            overrides.append(f"algo.parallel_critics={parallel_critics}")
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=overrides)
     model = build_algorithm(cfg)

@@ -1,4 +1,5 @@
-"""Rollout (on-policy) and replay (off-policy) storage."""
+"""Rollout storage of the on-policy algorithms (the replay buffer of SAC:
+:mod:`semdp.algos.replay_shared`)."""
 
 from __future__ import annotations
 
@@ -80,75 +81,3 @@ class RolloutBuffer:
             obs=flat(self.obs), actions=flat(self.actions), log_probs=flat(self.log_probs),
             adv_r=flat(adv_r), adv_c=flat(adv_c), ret_r=flat(ret_r), ret_c=flat(ret_c),
         )
-
-
-class ReplayBatch(NamedTuple):
-    """A sampled off-policy batch."""
-
-    obs: torch.Tensor
-    actions: torch.Tensor
-    rewards: torch.Tensor
-    costs: torch.Tensor
-    next_obs: torch.Tensor
-    terminated: torch.Tensor
-
-
-class ReplayBuffer:
-    """Circular replay buffer of raw transitions; sampling uses torch's global generator."""
-
-    def __init__(self, capacity: int, obs_dim: int, act_dim: int) -> None:
-        if capacity < 1:
-            raise ValueError(f"capacity must be >= 1, got {capacity}")
-        self.capacity = capacity
-        self.obs = np.zeros((capacity, obs_dim), dtype=np.float32)
-        self.next_obs = np.zeros((capacity, obs_dim), dtype=np.float32)
-        self.actions = np.zeros((capacity, act_dim), dtype=np.float32)
-        self.rewards = np.zeros(capacity, dtype=np.float32)
-        self.costs = np.zeros(capacity, dtype=np.float32)
-        self.terminated = np.zeros(capacity, dtype=np.float32)
-        self.pos, self.size = 0, 0
-
-    def add_batch(
-        self,
-        obs: np.ndarray,
-        actions: np.ndarray,
-        rewards: np.ndarray,
-        costs: np.ndarray,
-        next_obs: np.ndarray,
-        terminated: np.ndarray,
-    ) -> None:
-        """Store ``n`` transitions (leading axis = env index)."""
-        for i in range(len(rewards)):
-            p = self.pos
-            self.obs[p], self.actions[p], self.next_obs[p] = obs[i], actions[i], next_obs[i]
-            self.rewards[p], self.costs[p], self.terminated[p] = rewards[i], costs[i], terminated[i]
-            self.pos = (p + 1) % self.capacity
-            self.size = min(self.size + 1, self.capacity)
-
-    def sample(self, batch_size: int) -> ReplayBatch:
-        """Uniform sample with replacement."""
-        if self.size == 0:
-            raise RuntimeError("cannot sample from an empty replay buffer")
-        idx = torch.randint(0, self.size, (batch_size,)).numpy()
-        t = torch.as_tensor
-        return ReplayBatch(
-            t(self.obs[idx]), t(self.actions[idx]), t(self.rewards[idx]), t(self.costs[idx]),
-            t(self.next_obs[idx]), t(self.terminated[idx]),
-        )
-
-    def state_dict(self) -> dict[str, Any]:
-        """Filled part of the storage and the write position."""
-        n = self.size
-        return {
-            "pos": self.pos, "size": n, "obs": self.obs[:n].copy(),
-            "next_obs": self.next_obs[:n].copy(), "actions": self.actions[:n].copy(),
-            "rewards": self.rewards[:n].copy(), "costs": self.costs[:n].copy(),
-            "terminated": self.terminated[:n].copy(),
-        }
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict`."""
-        n = state["size"]
-        for name in ("obs", "next_obs", "actions", "rewards", "costs", "terminated"):
-            getattr(self, name)[:n] = state[name]
-        self.pos, self.size = state["pos"], n

@@ -10,7 +10,7 @@ the evaluation helpers, the SAC learner process, the planner's batch helpers). A
   loaded in the caller to one thread (:func:`single_threaded`), because a thread pool the caller
   started (GNU OpenMP under torch and MKL) does not exist in the copy and its first parallel
   region would wait forever for the missing threads.
-* :meth:`Helper.spawn` -- a fresh interpreter (``python -m solvers.workers.serve``) running the
+* :meth:`Helper.spawn` -- a fresh interpreter (:func:`solvers.workers.serve.main`) running the
   handler ``target(*argv)``; nothing is inherited, so it suits callers that may have any state
   (the planner's batch helpers, the SAC learner process).
 
@@ -208,8 +208,8 @@ class Helper:
             env.setdefault(variable, str(int(threads)))
         try:
             process = subprocess.Popen(
-                [sys.executable, "-m", "solvers.workers.serve", str(theirs.fileno()), target,
-                 *(str(a) for a in argv)],
+                [sys.executable, "-c", "from solvers.workers.serve import main; main()",
+                 str(theirs.fileno()), target, *(str(a) for a in argv)],
                 pass_fds=(theirs.fileno(), *pass_fds), env=env, stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL if quiet else None,
                 # a session of its own: a terminal's Ctrl-C reaches only the caller

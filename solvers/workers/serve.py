@@ -94,7 +94,3 @@ def main(argv: list[str] | None = None) -> None:
         _reply(conn, False, traceback.format_exc())
         return
     serve(handler, conn)
-
-
-if __name__ == "__main__":
-    main()
