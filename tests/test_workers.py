@@ -50,6 +50,22 @@ class Doubler:
         return request * self.factor  # type: ignore[operator]
 
 
+@pytest.mark.skipif(not Path("/proc/self/comm").exists(), reason="Linux process names")
+def test_helpers_show_their_name_to_ps() -> None:
+    spawned = Helper.spawn("tests.test_workers:Doubler", "named-spawned")
+    try:
+        spawned.request(1)
+        assert Path(f"/proc/{spawned.pid}/comm").read_text().strip() == "named-spawned"
+    finally:
+        spawned.close()
+    if fork_available():
+        forked = Helper.fork(lambda _: Path("/proc/self/comm").read_text().strip(), "named-fork")
+        try:
+            assert forked.request(None) == "named-fork"
+        finally:
+            forked.close()
+
+
 def test_describe_exit_by_hand() -> None:
     assert describe_exit(None) == "still running"
     assert describe_exit(0) == "exit code 0"

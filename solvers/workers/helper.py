@@ -38,7 +38,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from solvers.workers.serve import QUIT, Handler, dumps, serve
+from solvers.workers.serve import QUIT, Handler, dumps, serve, set_process_name
 
 #: Seconds :meth:`Helper.close` waits for a helper to quit before terminating it.
 CLOSE_TIMEOUT_S = 5.0
@@ -128,8 +128,9 @@ class _Spawned:
 
 
 def _forked_main(handler: Handler, conn: Connection, inherited: Sequence[Connection],
-                 parent: int) -> None:
+                 parent: int, name: str) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the caller handles Ctrl-C and stops us
+    set_process_name(name)
     for other in inherited:  # caller ends of every helper's connection, this one's included
         other.close()
     single_threaded()
@@ -182,7 +183,8 @@ class Helper:
         ours, theirs = ctx.Pipe()
         inherited = [ours, *(c for c in list(_open_caller_ends) if not c.closed)]
         process = ctx.Process(target=_forked_main, args=(handler, theirs, inherited,
-                                                         os.getpid()), name=name, daemon=True)
+                                                         os.getpid(), name), name=name,
+                              daemon=True)
         process.start()
         theirs.close()
         return cls(name, _Forked(process), ours)
@@ -209,7 +211,7 @@ class Helper:
         try:
             process = subprocess.Popen(
                 [sys.executable, "-c", "from solvers.workers.serve import main; main()",
-                 str(theirs.fileno()), target, *(str(a) for a in argv)],
+                 str(theirs.fileno()), name, target, *(str(a) for a in argv)],
                 pass_fds=(theirs.fileno(), *pass_fds), env=env, stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL if quiet else None,
                 # a session of its own: a terminal's Ctrl-C reaches only the caller
