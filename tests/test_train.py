@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import functools
 import json
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,9 +15,11 @@ import pytest
 from hydra.errors import ConfigCompositionException, MissingConfigException
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from semdp.algos.base import POLICY_NAME
 from semdp.algos.ppo_lag import PPOLag
 from semdp.algos.sac import SAC
 from semdp.common.logger import COMMON_COLUMNS, TIMING_COLUMNS
+from semdp.experiments.evaluation import load_trained
 from semdp.train import run
 
 ALGOS = ["ppo", "ppo_lag", "sp_ppo_lag", "trpo", "trpo_lag", "cpo", "sac"]
@@ -262,3 +265,20 @@ def test_resume_auto_skips_the_finished_runs_of_a_kept_sweep_on_another_machine(
     restarted = run(auto(), tmp_path / "kept" / "1_cut")
     assert restarted["status"] == "completed" and restarted["eval"] == done["eval"]
     assert [int(r["epoch"]) for r in _rows(tmp_path / "kept" / "1_cut")] == [1, 2, 3, 4]
+
+
+@pytest.mark.parametrize("algo", ["ppo_lag", "sac"])
+def test_the_policy_file_alone_evaluates_as_the_checkpoint_does(
+    tiny_train: Callable[..., DictConfig], tmp_path: Path, algo: str
+) -> None:
+    """A reference folder keeps ``policy.pt`` without the checkpoint: loading it must give the
+    evaluation of the full checkpoint, episode for episode."""
+    run_dir = tmp_path / "run"
+    run(tiny_train(algo), run_dir)
+    assert (run_dir / POLICY_NAME).is_file()
+    from_checkpoint, _ = load_trained(run_dir)
+    expected = from_checkpoint.evaluate(4, seed=123)
+    shutil.rmtree(run_dir / "checkpoints")
+    from_policy, _ = load_trained(run_dir)
+    assert from_policy.evaluate(4, seed=123) == expected
+    assert from_policy.env_steps == from_checkpoint.env_steps > 0

@@ -34,6 +34,9 @@ from semdp.common.seeding import get_rng_states, set_rng_states
 logger = logging.getLogger(__name__)
 
 CHECKPOINT_NAME = "last.pt"
+#: The trained policy alone (what acting needs), written into the run directory at the end of
+#: training: a few hundred kB that a reference folder keeps where it drops the checkpoint.
+POLICY_NAME = "policy.pt"
 EVAL_SEED_OFFSET = 10_000
 
 
@@ -210,6 +213,24 @@ class Algorithm(ABC):
             self._obs = self._flat_obs(obs)
         set_rng_states(state["rng"])
 
+    def policy_state(self) -> dict[str, Any]:
+        """What :meth:`predict` needs: the actor's weights (subclasses add e.g. the observation
+        normaliser)."""
+        actor = self.actor  # type: ignore[attr-defined]
+        return {"actor": {k: v.detach().clone() for k, v in actor.state_dict().items()}}
+
+    def load_policy_state(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`policy_state` (the rest of the algorithm keeps its initial state)."""
+        self.actor.load_state_dict(state["actor"])  # type: ignore[attr-defined]
+
+    def save_policy(self, path: Path) -> None:
+        """Write :meth:`policy_state` with the algorithm's class name (``policy.pt``)."""
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        torch.save({"algorithm": type(self).__name__, "epoch": self.epoch,
+                    "env_steps": self.env_steps, "policy": self.policy_state()}, tmp)
+        tmp.replace(path)
+
     # ----------------------------------------------------------------- the loop
     def save_checkpoint(self, path: Path) -> None:
         """``torch.save`` of :meth:`state_dict`.
@@ -253,7 +274,8 @@ class Algorithm(ABC):
 
         Args:
             total_steps: training budget (rounded up to whole epochs).
-            run_dir: directory for ``progress.csv``, ``checkpoints/`` and ``metrics.json``.
+            run_dir: directory for ``progress.csv``, ``checkpoints/``, ``metrics.json`` and, at
+                the end, the trained policy (``policy.pt``).
             eval_every: periodic evaluation every this many epochs (0 = never).
             eval_episodes: episodes per periodic evaluation.
             final_eval_episodes: episodes of the final evaluation in ``metrics.json``.
@@ -294,6 +316,7 @@ class Algorithm(ABC):
                     bar.update(1)
         finally:  # helper processes end with the loop (also on errors and Ctrl-C)
             self.close_helpers()
+        self.save_policy(run_dir / POLICY_NAME)
         if final_eval_episodes > 0 and self.eval_envs is not None:
             metrics["eval"] = self.evaluate(final_eval_episodes)
         metrics["status"] = "completed"

@@ -440,6 +440,15 @@ class OnPolicyAlgorithm(Algorithm):
             self._critic_worker.close()
             self._critic_worker = None
 
+    def policy_state(self) -> dict[str, Any]:
+        """The actor and the observation normaliser's statistics."""
+        return {**super().policy_state(), "normalizer": self.normalizer.state_dict()}
+
+    def load_policy_state(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`policy_state`."""
+        super().load_policy_state(state)
+        self.normalizer.load_state_dict(state["normalizer"])
+
     def state_dict(self) -> dict[str, Any]:
         """Base state plus networks, critic optimiser and normaliser."""
         state = super().state_dict()

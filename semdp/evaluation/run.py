@@ -21,7 +21,7 @@ from typing import Any
 from hydra.errors import InstantiationException
 from omegaconf import DictConfig, OmegaConf
 
-from semdp.algos.base import CHECKPOINT_NAME, EVAL_SEED_OFFSET, Algorithm
+from semdp.algos.base import CHECKPOINT_NAME, EVAL_SEED_OFFSET, POLICY_NAME, Algorithm
 from semdp.common.logger import write_metrics
 from semdp.evaluation.config_edits import edited_config
 from semdp.evaluation.environment import build_evaluation_env
@@ -38,11 +38,14 @@ TRANSFER_LAYOUTS = 10
 
 
 def check_run_dir(run_dir: Path) -> None:
-    """Raise :class:`EvalError` unless ``run_dir`` holds ``config.yaml`` and the checkpoint."""
+    """Raise :class:`EvalError` unless ``run_dir`` holds ``config.yaml`` and the checkpoint or
+    the trained policy."""
     if not run_dir.is_dir():
         raise EvalError(f"{run_dir}: no such run directory")
-    missing = [name for name in ("config.yaml", f"checkpoints/{CHECKPOINT_NAME}")
-               if not (run_dir / name).is_file()]
+    missing = [name for name in ("config.yaml",) if not (run_dir / name).is_file()]
+    if not ((run_dir / "checkpoints" / CHECKPOINT_NAME).is_file()
+            or (run_dir / POLICY_NAME).is_file()):
+        missing.append(f"checkpoints/{CHECKPOINT_NAME} or {POLICY_NAME}")
     if missing:
         raise EvalError(f"{run_dir} is not a finished run: no {' and no '.join(missing)}")
 

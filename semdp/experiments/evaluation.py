@@ -16,7 +16,7 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from semdp.algos.base import CHECKPOINT_NAME, Algorithm
+from semdp.algos.base import CHECKPOINT_NAME, POLICY_NAME, Algorithm
 from semdp.envs import make_vec_env
 from semdp.train import build_algorithm
 
@@ -26,7 +26,8 @@ logger = logging.getLogger(__name__)
 def load_trained(
     run_dir: str | Path, cfg: DictConfig | None = None
 ) -> tuple[Algorithm, DictConfig]:
-    """Rebuild the algorithm of a finished run from ``config.yaml`` and ``checkpoints/last.pt``.
+    """Rebuild the algorithm of a finished run from ``config.yaml`` and ``checkpoints/last.pt``,
+    or from its trained policy alone (``policy.pt``, what reference folders keep).
 
     Sets torch's thread count to the run's ``torch_threads`` (1 by default), as training did:
     float reductions depend on it, so an evaluation is reproducible on any machine.
@@ -37,20 +38,30 @@ def load_trained(
             ``None`` = the run's ``config.yaml``.
 
     Raises:
-        ValueError: ``run_dir`` lacks ``config.yaml`` or the checkpoint, or the checkpoint was
-            written by another algorithm than the config's.
+        ValueError: ``run_dir`` lacks ``config.yaml`` or both the checkpoint and the policy, or
+            they were written by another algorithm than the config's.
     """
     run_dir = Path(run_dir)
     ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
-    if not (run_dir / "config.yaml").is_file() or not ckpt.is_file():
-        raise ValueError(f"{run_dir} is not a finished run dir (needs config.yaml and {ckpt.name})")
+    policy = run_dir / POLICY_NAME
+    if not (run_dir / "config.yaml").is_file() or not (ckpt.is_file() or policy.is_file()):
+        raise ValueError(f"{run_dir} is not a finished run dir (needs config.yaml and "
+                         f"checkpoints/{ckpt.name} or {POLICY_NAME})")
     if cfg is None:
         cfg = OmegaConf.load(run_dir / "config.yaml")
     torch.set_num_threads(int(cfg.get("torch_threads", 1) or 1))
     algo = build_algorithm(cfg)
-    state = torch.load(ckpt, weights_only=False)["algo"]
-    check_checkpoint_fits(algo, state, cfg)
-    algo.load_state_dict(state)
+    if ckpt.is_file():
+        state = torch.load(ckpt, weights_only=False)["algo"]
+        check_checkpoint_fits(algo, state, cfg)
+        algo.load_state_dict(state)
+        return algo, cfg
+    saved = torch.load(policy, weights_only=False)
+    if saved["algorithm"] != type(algo).__name__:
+        raise ValueError(f"{POLICY_NAME} was written by {saved['algorithm']}, config.yaml "
+                         f"builds {type(algo).__name__}")
+    algo.load_policy_state(saved["policy"])
+    algo.epoch, algo.env_steps = int(saved["epoch"]), int(saved["env_steps"])
     return algo, cfg
 
 
