@@ -5,10 +5,8 @@
 Values come from the completed runs kept in ``runs/``, reduced by ``semdp-report``'s own code
 (``load_runs``, ``late_training_values``): the final evaluation's ``eval.return_mean`` /
 ``eval.cost_mean`` (50 episodes), and the training episodes' ``ep_return`` / ``ep_cost``
-averaged over the last 10 % of the epochs. Seed 0's first run directories were lost with a
-machine: where no seed-0 run is kept, its value comes from the table of ``semdp_push_8e6``
-(every baseline cell there has one seed, so each entry is seed 0's value, rounded to 2
-decimals). The standard error uses the sample deviation.
+averaged over the last 10 % of the epochs; all 27 runs (3 methods x 3 robots x seeds 0-2) are
+kept. The standard error uses the sample deviation.
 """
 
 from __future__ import annotations
@@ -20,7 +18,6 @@ from semdp.report import late_training_values
 from semdp.reporting.runs import load_runs, mean_and_standard_error
 
 HERE = Path(__file__).resolve().parent
-SEED0_TABLE = HERE.parent / "semdp_push_8e6" / "table.md"
 METHODS = ("CPO", "PPO-Lag", "TRPO-Lag")
 LABELS = {"PPO Lag": "PPO-Lag", "TRPO Lag": "TRPO-Lag"}  # Table 3.1's preset labels
 ENVS = ("PointPush1", "CarPush1", "MassPush1")
@@ -28,25 +25,6 @@ LATE = 0.1  # the last 10 % of the epochs
 SECTIONS = {"eval": "Final evaluation (50 episodes)",
             "late": "Training episodes, last 10 % of the epochs"}
 Key = tuple[str, str, str, str]  # section, env, metric, method
-
-
-def seed0_values() -> dict[Key, float]:
-    """The baseline cells of ``semdp_push_8e6/table.md`` (seed 0 only)."""
-    values: dict[Key, float] = {}
-    section, header = "", []
-    for line in SEED0_TABLE.read_text().splitlines():
-        if line.startswith("Final evaluation"):
-            section = "eval"
-        elif line.startswith("## Training episodes"):
-            section = "late"
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if line.startswith("| env"):
-            header = [LABELS.get(h, h) for h in cells]
-        elif section and line.startswith("| ") and "---" not in line:
-            for method, cell in zip(header[2:], cells[2:], strict=True):
-                if method in METHODS:
-                    values[(section, cells[0], cells[1], method)] = float(cell.split()[0])
-    return values
 
 
 def kept_values() -> dict[Key, dict[int, float]]:
@@ -71,8 +49,6 @@ def _fmt(value: float) -> str:
 
 def main() -> None:
     values = kept_values()
-    for key, value in seed0_values().items():
-        values.setdefault(key, {}).setdefault(0, value)
     seeds = sorted({s for per in values.values() for s in per})
     print("# Table 3.1 baselines at 8e6 env steps: per seed\n")
     print(__doc__.split("\n\n", 2)[2].strip() + "\n")
