@@ -4,6 +4,7 @@ Hydra configs inside the installed package and run from any directory."""
 from __future__ import annotations
 
 import os
+import site
 import subprocess
 import sys
 from pathlib import Path
@@ -27,9 +28,14 @@ def test_a_wheel_runs_the_apps_from_another_directory(tmp_path: Path) -> None:
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
           "-w", str(dist), str(ROOT)], cwd=tmp_path)
     wheel = next(dist.glob("semdp-*.whl"))
-    venv = tmp_path / "venv"  # the dependencies come from this interpreter's site-packages
-    _run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], cwd=tmp_path)
+    venv = tmp_path / "venv"
+    _run([sys.executable, "-m", "venv", str(venv)], cwd=tmp_path)
     python = venv / "bin" / "python"
+    # the dependencies: this environment's site-packages, after the venv's own (a plain path
+    # entry: the editable install's import hook there is not loaded, so the wheel is imported)
+    purelib = _run([str(python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+                   cwd=tmp_path).stdout.strip()
+    Path(purelib, "dependencies.pth").write_text("\n".join(site.getsitepackages()) + "\n")
     _run([str(python), "-m", "pip", "install", "--no-deps", "--no-index", "-q", str(wheel)],
          cwd=tmp_path)
     work = tmp_path / "elsewhere"
