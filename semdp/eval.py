@@ -6,6 +6,7 @@
     semdp-eval outputs/train/<run> planner=ipopt clearance=0.6 perception=gt episodes=20
     semdp-eval outputs/train/<run> variant=transfer                  # Table 3.2 stand-in
     semdp-eval outputs/train/<run> episodes=1 video=true             # MP4 of the first episode
+    semdp-eval zoo:<name>                    # a committed policy (outputs/reference/zoo.yaml)
 
 Writes ``RUN_DIR/eval_<time>/metrics.json``; a bad argument prints one line naming it and exits 1.
 """
@@ -19,7 +20,7 @@ from semdp.evaluation.errors import EvalError
 from semdp.evaluation.options import SHORTHANDS
 from semdp.evaluation.run import evaluate_run
 
-USAGE = "usage: semdp-eval RUN_DIR [key=value ...]"
+USAGE = "usage: semdp-eval RUN_DIR|zoo:NAME [key=value ...]"
 
 
 def _help() -> str:

@@ -84,7 +84,8 @@ def plot_plan(
 
 def plot_comparison(comparison: Comparison, path: Path) -> None:
     """Every planner's plan of one problem overlaid, with the obstacles' eps' + r circles and a
-    legend giving each planner's time (ms), its smallest clearance and a fallback."""
+    legend giving each planner's time (ms), its smallest clearance, its smoothness against the
+    budget (Eq. 3.3) and a fallback."""
     import matplotlib.pyplot as plt
 
     fig, ax = _axes((7.2, 6.4))
@@ -97,6 +98,8 @@ def plot_comparison(comparison: Comparison, path: Path) -> None:
                      if np.isfinite(row.min_clearance) else "no obstacles")
         flags = (", FALLBACK" if row.fallback
                  else "" if row.reached_subgoal else ", subgoal not reached")
+        if not row.within_budget:
+            flags += f", h_smooth {row.smoothness / row.smoothness_budget:.1f}x budget"
         ax.plot(points[:, 0], points[:, 1], ls=_STYLES[k % len(_STYLES)],
                 marker=_MARKERS[k % len(_MARKERS)], ms=3.5, lw=1.6, alpha=0.85,
                 color=colours[k % len(colours)],

@@ -52,10 +52,13 @@ def pin_helpers(cfg: DictConfig) -> DictConfig:
 @pytest.fixture
 def compose_train() -> Callable[..., DictConfig]:
     """``compose_train(*overrides)`` -> the composed ``train`` config (no Hydra app running),
-    helper paths pinned (:func:`pin_helpers`)."""
+    helper paths pinned (:func:`pin_helpers`) unless the overrides choose them."""
 
     def _compose(*overrides: str) -> DictConfig:
-        return pin_helpers(compose_config("train", overrides))
+        cfg = compose_config("train", overrides)
+        chosen = {o.lstrip("+~").split("=", 1)[0] for o in overrides} & {
+            "algo.vectorization", "algo.parallel_critics", "loop"}
+        return cfg if chosen else pin_helpers(cfg)
 
     return _compose
 

@@ -29,11 +29,15 @@ pytestmark = pytest.mark.skipif(not fork_available(), reason="helpers need fork"
 
 SYNC = ("algo.vectorization=sync", "algo.parallel_critics=false")
 ASYNC = ("algo.vectorization=async", "algo.parallel_critics=true")
+AUTO = ("algo.vectorization=auto", "algo.parallel_critics=auto")
+#: Columns that record which helpers ran (they differ between the ways; no number does).
+PATH_COLUMNS = ("rollout_helper", "critic_helper")
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
     with (path / "progress.csv").open() as f:
-        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(f)]
+        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS and k not in PATH_COLUMNS}
+                for r in csv.DictReader(f)]
 
 
 def _actions(rng: np.random.Generator, envs) -> np.ndarray:
@@ -196,7 +200,7 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
 
     monkeypatch.setattr(on_policy, "idle_core", lambda: False)  # a busy machine: probe both
     monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 1.0)  # every env counts as cheap
-    cheap = build_algorithm(tiny_train("ppo"))
+    cheap = build_algorithm(tiny_train("ppo", *AUTO))
     critics = []
     for _ in range(3):
         cheap.train_epoch()
@@ -205,10 +209,10 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     assert critics[:2] == [False, True]  # the first two updates measure both ways
     cheap.close_helpers()
     monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 0.0)  # every env counts as slow
-    run(tiny_train("ppo"), tmp_path / "auto")
+    run(tiny_train("ppo", *AUTO), tmp_path / "auto")
     run(tiny_train("ppo", *SYNC), tmp_path / "sync")
     assert _rows(tmp_path / "auto") == _rows(tmp_path / "sync")
-    probing = build_algorithm(tiny_train("ppo"))
+    probing = build_algorithm(tiny_train("ppo", *AUTO))
     used = []
     for _ in range(4):
         probing.train_epoch()
@@ -217,17 +221,17 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     probing.close_helpers()
     # a core idle at the start: the helpers from the first epoch; the cheap envs come back
     monkeypatch.setattr(on_policy, "idle_core", lambda: True)
-    quiet = build_algorithm(tiny_train("ppo"))
+    quiet = build_algorithm(tiny_train("ppo", *AUTO))
     quiet.train_epoch()
     assert quiet.envs_in_helper and quiet.critics_in_helper
     quiet.close_helpers()
     monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 1.0)
-    cheap_quiet = build_algorithm(tiny_train("ppo"))
+    cheap_quiet = build_algorithm(tiny_train("ppo", *AUTO))
     for _ in range(2):
         cheap_quiet.train_epoch()
     assert not cheap_quiet.envs_in_helper and cheap_quiet.critics_in_helper
     cheap_quiet.close_helpers()
-    run(tiny_train("ppo"), tmp_path / "quiet")
+    run(tiny_train("ppo", *AUTO), tmp_path / "quiet")
     assert _rows(tmp_path / "quiet") == _rows(tmp_path / "sync")
     assert not mp.active_children()
 

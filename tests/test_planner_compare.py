@@ -98,3 +98,33 @@ def test_comparison_to_dict_is_json_ready() -> None:
     assert payload["obstacles"] == [[0.5, 0.8, 0.0]] and payload["rows"][0]["name"] == "lm"
     with pytest.raises(KeyError):
         comparison["ipopt"]
+
+
+def _gp_smoothness(waypoints: np.ndarray, velocities: np.ndarray, dt: float) -> float:
+    """Eq. 3.6 written out: sum_i e_i^T Q_i^{-1} e_i, e_i = [x_{i+1} - x_i - v_i dt;
+    v_{i+1} - v_i], Q_i^{-1} = [[12/dt^3, -6/dt^2], [-6/dt^2, 4/dt]] (x) I_2."""
+    total = 0.0
+    for i in range(len(waypoints) - 1):
+        e_pos = waypoints[i + 1] - waypoints[i] - velocities[i] * dt
+        e_vel = velocities[i + 1] - velocities[i]
+        total += (12 / dt**3 * e_pos @ e_pos - 12 / dt**2 * e_pos @ e_vel
+                  + 4 / dt * e_vel @ e_vel)
+    return float(total)
+
+
+def test_comparison_reports_the_smoothness_budget_each_backend_keeps() -> None:
+    """IPOPT keeps h_smooth <= sigma as a constraint; the LM backend only as a penalty, and on
+    this problem reaches the subgoal by exceeding it: the comparison must say so."""
+    comparison = compare_backends(start=[0, 0], subgoal=[2.5, 1],
+                                  obstacles=[[1, 0.3], [0.4, -0.8], [1.8, 1.2]],
+                                  backends=["ipopt", "lm"], repeats=1)
+    ipopt, lm = comparison["ipopt"], comparison["lm"]
+    assert ipopt.smoothness_budget == lm.smoothness_budget == 0.048
+    assert ipopt.within_budget and ipopt.smoothness <= 0.048 * (1 + 1e-6)
+    assert lm.reached_subgoal and not lm.within_budget and lm.smoothness > 2 * 0.048
+    assert "(over, ×" in comparison.table() and lm.record()["within_budget"] is False
+    for row in (ipopt, lm):
+        result = row.result
+        dt = SafeTrajectoryPlanner().settings.dt
+        assert math.isclose(row.smoothness, _gp_smoothness(result.waypoints, result.velocities, dt),
+                            rel_tol=1e-9)

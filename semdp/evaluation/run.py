@@ -28,6 +28,7 @@ from semdp.evaluation.environment import build_evaluation_env
 from semdp.evaluation.episodes import play_episode, summarise
 from semdp.evaluation.errors import EvalError
 from semdp.evaluation.options import EvalOptions, parse_arguments
+from semdp.evaluation.zoo import resolve
 from semdp.experiments.evaluation import load_trained
 from semdp.experiments.transfer import LAYOUT_SEED
 from semdp.rendering.video import write_video
@@ -73,11 +74,11 @@ def _load(run_dir: Path, cfg: DictConfig) -> Algorithm:
     return algo
 
 
-def _out_dir(run_dir: Path) -> Path:
+def _out_dir(root: Path) -> Path:
     stamp = dt.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
-    out, n = run_dir / f"eval_{stamp}", 1
+    out, n = root / f"eval_{stamp}", 1
     while out.exists():
-        out, n = run_dir / f"eval_{stamp}_{n}", n + 1
+        out, n = root / f"eval_{stamp}_{n}", n + 1
     return out
 
 
@@ -90,13 +91,14 @@ def _label(source: dict[str, Any], cfg: DictConfig, options: EvalOptions) -> str
 
 
 def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[str, Any]]:
-    """Evaluate ``run_dir`` under ``arguments``; return the new directory and its metrics.
+    """Evaluate ``run_dir`` (or a zoo entry ``zoo:<name>``, :mod:`semdp.evaluation.zoo`) under
+    ``arguments``; return the new directory and its metrics.
 
     Raises:
-        EvalError: a bad run directory or argument, an unknown key, or a checkpoint of another
-            algorithm (nothing is written then).
+        EvalError: a bad run directory, zoo name or argument, an unknown key, or a checkpoint
+            of another algorithm (nothing is written then).
     """
-    run_dir = Path(run_dir)
+    run_dir, out_root = resolve(str(run_dir))
     check_run_dir(run_dir)
     options = parse_arguments(arguments)
     saved = OmegaConf.load(run_dir / "config.yaml")
@@ -115,7 +117,7 @@ def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[
     ev.env.close()
     source_file = run_dir / "metrics.json"
     source = json.loads(source_file.read_text()) if source_file.is_file() else {}
-    out_dir = _out_dir(run_dir)
+    out_dir = _out_dir(out_root or run_dir)
     out_dir.mkdir(parents=True)
     video = None
     if options.video:

@@ -1,10 +1,13 @@
 """Compare planners on one problem: the same start, subgoal and obstacles, solved by each.
 
-The numbers are those of the planner's own certificate (thesis §3.5.2): the objective
-``||x_N - g||^2`` (Eq. 3.4), the smallest clearance at the waypoints and along the path (exact
-segment distances), whether the subgoal was reached and whether the plan fell back to the
-stationary one. Times are per ``plan`` call, after one untimed call that builds the compiled
-solvers this problem needs (solvers/README.md, "Compare backends on one problem").
+The numbers are those of the planner's own certificate (thesis §3.5.2) and of every constraint of
+the problem (Eqs. 3.3-3.7): the objective ``||x_N - g||^2`` (Eq. 3.4), the smoothness ``h_smooth``
+against its budget ``sigma_smooth`` (Eq. 3.6; the LM backend keeps it only as a penalty, so its
+plans may get closer to the subgoal by exceeding it), the smallest clearance at the waypoints and
+along the path (Eq. 3.7, exact segment distances), whether the subgoal was reached and whether
+the plan fell back to the stationary one (``x_1 = s`` holds by construction, Eq. 3.5). Times are
+per ``plan`` call, after one untimed call that builds the compiled solvers this problem needs
+(solvers/README.md, "Compare backends on one problem").
 
 Usage::
 
@@ -30,9 +33,9 @@ from solvers.planner.settings import BACKENDS
 
 #: Columns of :meth:`Comparison.records` (and of ``semdp-plan``'s CSV), in order.
 COLUMNS: tuple[str, ...] = (
-    "name", "backend", "ms", "iterations", "objective", "min_clearance",
-    "min_clearance_continuous", "reached_subgoal", "fallback", "feasible", "escape_mode",
-    "rescued", "clearance", "status",
+    "name", "backend", "ms", "iterations", "objective", "smoothness", "smoothness_budget",
+    "within_budget", "min_clearance", "min_clearance_continuous", "reached_subgoal", "fallback",
+    "feasible", "escape_mode", "rescued", "clearance", "status",
 )
 
 
@@ -46,6 +49,9 @@ class ComparisonRow:
         ms: Median wall time of the timed ``plan`` calls (ms).
         iterations: Solver iterations of the returned plan.
         objective: ``||x_N - subgoal||^2``.
+        smoothness: ``h_smooth`` of the plan (Eq. 3.6).
+        smoothness_budget: ``sigma_smooth`` (Eq. 3.3).
+        within_budget: ``h_smooth <= sigma_smooth`` (relative tolerance 1e-6).
         min_clearance: Smallest waypoint distance to an obstacle surface (m; ``inf`` without
             obstacles). Compare it with ``clearance``.
         min_clearance_continuous: The same along the segments between waypoints.
@@ -65,6 +71,9 @@ class ComparisonRow:
     ms: float
     iterations: int
     objective: float
+    smoothness: float
+    smoothness_budget: float
+    within_budget: bool
     min_clearance: float
     min_clearance_continuous: float
     reached_subgoal: bool
@@ -122,16 +131,21 @@ class Comparison:
         }
 
     def table(self) -> str:
-        """A Markdown table: planner, ms, iterations, objective, both clearances, reached,
-        fallback."""
+        """A Markdown table: planner, ms, iterations, objective, smoothness against its budget,
+        both clearances, reached, fallback."""
         lines = [
-            "| planner | ms | iterations | objective ‖x_N − g‖² | min clearance waypoints (m) "
-            "| min clearance path (m) | reached subgoal | fallback |",
-            "|---|---|---|---|---|---|---|---|",
+            "| planner | ms | iterations | objective ‖x_N − g‖² | h_smooth / σ "
+            "| min clearance waypoints (m) | min clearance path (m) | reached subgoal | fallback |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for row in self.rows:
+            budget = (f"{row.smoothness:.3g} / {row.smoothness_budget:.3g}"
+                      if math.isfinite(row.smoothness_budget) else "–")
+            if not row.within_budget:
+                budget += f" (over, ×{row.smoothness / row.smoothness_budget:.2f})"
             lines.append(
                 f"| {row.name} | {row.ms:.2f} | {row.iterations} | {row.objective:.3g} | "
+                f"{budget} | "
                 f"{_metres(row.min_clearance)} | {_metres(row.min_clearance_continuous)} | "
                 f"{'yes' if row.reached_subgoal else 'no'} | {'yes' if row.fallback else 'no'} |"
             )
@@ -217,6 +231,9 @@ def _row(
         ms=1e3 * statistics.median(times),
         iterations=int(result.iterations),
         objective=float(result.objective),
+        smoothness=float(result.smoothness),
+        smoothness_budget=float(result.smoothness_budget),
+        within_budget=bool(result.within_budget),
         min_clearance=float(result.min_clearance),
         min_clearance_continuous=float(result.min_clearance_continuous),
         reached_subgoal=bool(result.reached_subgoal),

@@ -13,6 +13,7 @@ fallback. Many problems at once: :func:`solvers.planner.batching.plan_batch`.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections.abc import Sequence
@@ -24,7 +25,7 @@ from solvers.planner.backend import Backend, Iterate
 from solvers.planner.context import PlanningContext
 from solvers.planner.ipopt_backend import IpoptBackend
 from solvers.planner.lm_backend import LMBackend
-from solvers.planner.problem import GPPrior, PreparedProblem, bucket_size
+from solvers.planner.problem import GPPrior, PreparedProblem, bucket_size, join
 from solvers.planner.result import PlanResult
 from solvers.planner.scp_backend import ScpBackend
 from solvers.planner.settings import PlannerSettings
@@ -213,6 +214,10 @@ class SafeTrajectoryPlanner:
         if self.rescue_solver is not None and (plan.failed or not certificate.passes(prep, plan.z)):
             plan = self._rescue(prep, plan)
         result = certificate.certify(prep, plan, backend=self.backend, tic=tic)
+        result = dataclasses.replace(
+            result, smoothness=self.prior.smoothness(join(result.waypoints - prep.start,
+                                                          result.velocities)),
+            smoothness_budget=self.settings.sigma_smooth)
         self.memory.remember(prep.start, prep.start + prep.goal, result.waypoints)
         return result
 

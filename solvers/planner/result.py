@@ -36,6 +36,10 @@ class PlanResult:
             and keeping at most ``max_obstacles``); the certificate checks all of them.
         rescued: The backend's own plan failed the certificate and IPOPT's (``rescue_backend``)
             passed it; ``backend`` still names the primary backend.
+        smoothness: ``h_smooth`` of the returned plan (Eq. 3.6).
+        smoothness_budget: ``sigma_smooth``, the budget of Eq. 3.3 (``h_smooth <= sigma``): the
+            IPOPT and SCP backends keep it as a constraint, the LM backend as a penalty (its
+            plans may exceed it; the clearance certificate does not check it).
     """
 
     waypoints: np.ndarray
@@ -54,6 +58,14 @@ class PlanResult:
     multiplier: float = float("nan")
     n_considered: int = 0
     rescued: bool = False
+    smoothness: float = float("nan")
+    smoothness_budget: float = float("nan")
+
+    @property
+    def within_budget(self) -> bool:
+        """``h_smooth <= sigma_smooth`` (relative tolerance 1e-6; true where a planner has no
+        budget, ``nan``)."""
+        return not self.smoothness > self.smoothness_budget * (1.0 + 1e-6)
 
     def summary(self) -> str:
         """A few human-readable lines (used by the CLI)."""
@@ -64,6 +76,8 @@ class PlanResult:
             f"final_waypoint={np.round(self.waypoints[-1], 4).tolist()}",
             f"min_clearance waypoints={self.min_clearance:.6f} m "
             f"continuous={self.min_clearance_continuous:.6f} m",
+            f"h_smooth={self.smoothness:.6g} budget sigma={self.smoothness_budget:.6g} "
+            f"within_budget={self.within_budget}",
             f"iterations={self.iterations} solve_time={self.solve_time_s * 1e3:.2f} ms "
             f"obstacles_considered={self.n_considered}",
         ]

@@ -1,0 +1,47 @@
+"""The policy zoo: trained policies kept in the repository, evaluated by name.
+
+``outputs/reference/zoo.yaml`` maps a name to a kept run directory (relative to
+``outputs/reference``) that holds ``config.yaml`` and ``policy.pt``; ``semdp-eval zoo:<name>``
+evaluates it as ``semdp-eval <run dir>`` would, writing its results under
+``outputs/eval/<name>/`` instead of into the committed folder.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from semdp.evaluation.errors import EvalError
+from semdp.paths import REFERENCE_DIR, REPO_ROOT
+
+#: Prefix of a zoo entry on the ``semdp-eval`` command line.
+PREFIX = "zoo:"
+INDEX = REFERENCE_DIR / "zoo.yaml"
+
+
+def entries(index: Path = INDEX) -> dict[str, Path]:
+    """Every entry: name -> run directory."""
+    if not index.is_file():
+        return {}
+    table = OmegaConf.to_container(OmegaConf.load(index))
+    if not isinstance(table, dict):
+        raise EvalError(f"{index} must map names to run directories")
+    return {str(name): index.parent / str(path) for name, path in table.items()}
+
+
+def resolve(argument: str, index: Path = INDEX) -> tuple[Path, Path | None]:
+    """``(run dir, output root)`` of a ``semdp-eval`` target: a run directory (output root
+    ``None``: beside the run) or ``zoo:<name>`` (output root ``outputs/eval/<name>``).
+
+    Raises:
+        EvalError: an unknown zoo name (the message lists the known ones).
+    """
+    if not argument.startswith(PREFIX):
+        return Path(argument), None
+    name = argument[len(PREFIX):]
+    known = entries(index)
+    if name not in known:
+        raise EvalError(f"no zoo entry {name!r}; known: {', '.join(sorted(known)) or 'none'} "
+                        f"({index})")
+    return known[name], REPO_ROOT / "outputs" / "eval" / name
