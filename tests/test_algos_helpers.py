@@ -198,6 +198,7 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     from semdp.algos import on_policy
     from semdp.train import build_algorithm
 
+    monkeypatch.setattr(on_policy, "_cpus", lambda: 2)  # two usable cores, whatever the machine
     monkeypatch.setattr(on_policy, "idle_core", lambda: False)  # a busy machine: probe both
     monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 1.0)  # every env counts as cheap
     cheap = build_algorithm(tiny_train("ppo", *AUTO))
