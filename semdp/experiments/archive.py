@@ -6,7 +6,8 @@ without them: a reference folder built from them could not be rebuilt with more 
 The report needs only each run's ``metrics.json``, ``progress.csv`` and ``config.yaml`` (the
 run-directory contract of docs/design.md) and the sweep's ``multirun.yaml`` (its command), a
 few hundred kB per run without checkpoints or event files; the trained policy (``policy.pt``, a
-few hundred kB more) is kept too, so ``semdp-eval`` re-evaluates a kept run.
+few hundred kB more) is kept too, so ``semdp-eval`` re-evaluates a kept run, and so is
+``eval.json`` where a run has one (a ``semdp-eval`` result the reference records).
 :func:`archive_sweep` copies those (and ``.hydra/overrides.yaml``) and writes ``timing.json``:
 the sweep's start and each run's finish time, which file times do not keep through a git
 checkout.
@@ -22,7 +23,7 @@ from typing import Any
 from semdp.reporting.runs import METRICS_NAME, find_run_dirs
 
 KEPT_RUN_FILES: tuple[str, ...] = (METRICS_NAME, "progress.csv", "config.yaml",
-                                   ".hydra/overrides.yaml", "policy.pt")
+                                   ".hydra/overrides.yaml", "policy.pt", "eval.json")
 MULTIRUN_NAME = "multirun.yaml"
 TIMING_NAME = "timing.json"
 

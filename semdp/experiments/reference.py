@@ -172,8 +172,9 @@ def write_reference(sweep_dir: Path | list[Path], out_dir: Path,
         + (f" {machine}" if machine else ""),
     ]
     if kept:
-        text.append(f"- Kept runs: `{RUNS_DIR}/` holds each run's metrics.json, progress.csv and "
-                    "config.yaml (no checkpoints), one folder per sweep ("
+        text.append(f"- Kept runs: `{RUNS_DIR}/` holds each run's metrics.json, progress.csv, "
+                    "config.yaml and trained policy (policy.pt; no checkpoints), one folder "
+                    "per sweep ("
                     + ", ".join(f"`{name}`" for name in kept) + "); rebuild or extend this "
                     "folder with `python -m semdp.experiments.reference "
                     f"{out_dir.as_posix()}/{RUNS_DIR}/* [more sweeps] {out_dir.as_posix()} "

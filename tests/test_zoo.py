@@ -1,0 +1,44 @@
+"""The policy zoo (outputs/reference/zoo.yaml): every entry evaluates, and re-evaluating an
+entry's recorded episodes gives their numbers exactly (deterministic evaluation)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from semdp.evaluation.errors import EvalError
+from semdp.evaluation.run import check_run_dir, evaluate_run
+from semdp.evaluation.zoo import INDEX, entries, resolve
+
+ZOO = entries()
+#: One entry per robot that has one (the test of the issue: a table value reproduced).
+CHECKED = sorted({name.split("_")[1]: name for name in sorted(ZOO)}.values())
+
+
+def test_the_zoo_has_entries_and_each_holds_a_policy_and_its_evaluation() -> None:
+    assert ZOO, f"no entries in {INDEX}"
+    for name, run_dir in ZOO.items():
+        check_run_dir(run_dir)
+        assert (run_dir / "policy.pt").is_file(), name
+        recorded = json.loads((run_dir / "eval.json").read_text())
+        assert recorded["eval"]["episodes"] == len(recorded["episodes"]) == 50, name
+
+
+def test_an_unknown_name_lists_the_known_ones() -> None:
+    with pytest.raises(EvalError, match=r"no zoo entry 'nope'; known: .*semdp_point_push1_s0"):
+        resolve("zoo:nope")
+    assert resolve("some/run") == (Path("some/run"), None)
+
+
+@pytest.mark.parametrize("name", CHECKED)
+def test_a_zoo_entry_reproduces_its_recorded_episodes(name: str, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    recorded = json.loads((ZOO[name] / "eval.json").read_text())
+    seeds = recorded["settings"]["seeds"][:2]
+    monkeypatch.setattr("semdp.evaluation.zoo.REPO_ROOT", tmp_path)  # results go there
+    out_dir, metrics = evaluate_run(f"zoo:{name}", [f"seeds=[{seeds[0]},{seeds[1]}]"])
+    assert out_dir.is_relative_to(tmp_path / "outputs" / "eval" / name)
+    for again, before in zip(metrics["episodes"], recorded["episodes"][:2], strict=True):
+        assert (again["return"], again["cost"]) == (before["return"], before["cost"])
