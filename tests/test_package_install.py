@@ -4,6 +4,7 @@ Hydra configs inside the installed package and run from any directory."""
 from __future__ import annotations
 
 import os
+import shutil
 import site
 import subprocess
 import sys
@@ -24,9 +25,12 @@ def _run(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.Completed
 
 def test_a_wheel_runs_the_apps_from_another_directory(tmp_path: Path) -> None:
     pytest.importorskip("setuptools")  # the wheel is built without an isolated environment
+    source = tmp_path / "source"  # a copy: the build writes build/ and *.egg-info in the tree
+    shutil.copytree(ROOT, source, symlinks=True, ignore=shutil.ignore_patterns(
+        ".git", "outputs", "build", "dist", "*.egg-info", ".venv", "__pycache__"))
     dist = tmp_path / "dist"
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-          "-w", str(dist), str(ROOT)], cwd=tmp_path)
+          "-w", str(dist), str(source)], cwd=tmp_path)
     wheel = next(dist.glob("semdp-*.whl"))
     venv = tmp_path / "venv"
     _run([sys.executable, "-m", "venv", str(venv)], cwd=tmp_path)
