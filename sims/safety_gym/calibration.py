@@ -1,4 +1,5 @@
-"""Robot response measurements against the tables measured in Safety-Gymnasium 1.0.0.
+"""Robot response measurements against the tables measured in Safety-Gymnasium 1.0.0 (the
+constants below; sims/README.md, "Robots and calibration").
 
 Each measurement drives a robot alone (Goal level 0, goal planted far away) with a constant
 action, as measured in Safety-Gymnasium: average over the last 100 of 400 (Point) or 300 (Car)
@@ -11,18 +12,18 @@ import numpy as np
 
 from sims.safety_gym.env import SafetyGymEnv
 
-#: Spec §3.1: Point steady speed (m/s) vs a0 with a1 = 0.
+#: Safety-Gymnasium 1.0.0: Point steady speed (m/s) vs a0 with a1 = 0.
 POINT_SPEED = {0.005: 0.150, 0.01: 0.300, 0.02: 0.600, 0.03: 0.900, 0.04: 1.200, 0.05: 1.500}
-#: Spec §3.1: Point speed after n steps at saturation.
+#: Safety-Gymnasium 1.0.0: Point speed after n steps at saturation.
 POINT_RISE = {1: 0.057, 5: 0.263, 10: 0.479, 25: 0.927, 50: 1.281}
-#: Spec §3.1: Point yaw rate (rad/s) vs a1 with a0 = 0 (0 inside the dead zone).
+#: Safety-Gymnasium 1.0.0: Point yaw rate (rad/s) vs a1 with a0 = 0 (0 inside the dead zone).
 POINT_YAW = {
     0.05: 0.0, 0.075: 0.0, 0.1: 0.033, 0.15: 0.264, 0.2: 0.495, 0.3: 0.78, 0.4: 1.0,
     0.5: 1.35, 0.6: 1.69, 0.7: 2.06, 0.8: 2.44, 0.9: 2.81, 1.0: 3.0,
 }  # fmt: skip
-#: Spec §3.1: combined actions -> (speed, yaw rate).
+#: Safety-Gymnasium 1.0.0: combined actions -> (speed, yaw rate).
 POINT_COMBINED = {(0.05, 1.0): (0.86, 2.97), (0.05, 0.5): (1.24, 1.34), (0.05, 0.2): (1.45, 0.50)}
-#: Spec §3.2: Car (speed, yaw rate) vs wheel torques.
+#: Safety-Gymnasium 1.0.0: Car (speed, yaw rate) vs wheel torques.
 CAR_STEADY = {
     (0.0025, 0.0025): (0.084, 0.0), (0.005, 0.005): (0.168, 0.0), (0.01, 0.01): (0.372, 0.0),
     (0.015, 0.015): (0.611, 0.0), (0.02, 0.02): (0.775, 0.0), (-0.02, -0.02): (0.761, 0.0),
@@ -30,7 +31,7 @@ CAR_STEADY = {
     (0.0025, -0.0025): (0.0, 0.355), (0.005, -0.005): (0.0, 0.637), (0.01, -0.01): (0.0, 0.879),
     (0.015, -0.015): (0.0, 1.065), (0.02, -0.02): (0.0, 1.321),
 }  # fmt: skip
-#: Spec §3.2: Car speed after n steps at saturation.
+#: Safety-Gymnasium 1.0.0: Car speed after n steps at saturation.
 CAR_RISE = {1: 0.20, 5: 0.59, 10: 0.76}
 
 
