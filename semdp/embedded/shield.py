@@ -32,9 +32,9 @@ one step ahead; ``"brake"`` keeps braking. In the one training episode with cost
 long-trained Point runs (outputs/reference/semdp_converged/COMMAND.md) a push left braking
 uncertified against the LiDAR-bounded regions though not against the true hazard, and the
 escape choice accelerated the robot into the hazard; replayed with ``"brake"`` the episode has
-no cost. Over the safety table both have no episode with cost, and ``"brake"`` replaces 2-4x
-more commands on the Point and the Car (outputs/reference/safety/COMMAND.md), so the default
-stays ``"escape"``.
+no cost. Over the safety table both have no episode with cost, and ``"brake"`` replaces
+1.1-5.8x more commands where the filter acts on at least 1 % of them (the Point and the Car;
+outputs/reference/safety/COMMAND.md), so the default stays ``"escape"``.
 """
 
 from __future__ import annotations
