@@ -17,15 +17,15 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
-from semdp.experiments.tradeoff import is_semdp_env, with_clearance
-from semdp.experiments.transfer import (
+from semdp.evaluation.transfer_variant import (
     DEFAULT_SIZES,
     ObservationNoise,
     SuccessOnGoal,
     transfer_env_config,
-    transfer_table,
     transfer_wrap,
 )
+from semdp.experiments.tradeoff import is_semdp_env, with_clearance
+from semdp.experiments.transfer import transfer_table
 from semdp.paths import CONF_DIR
 
 PRESETS = ("sp_safety_gym", "sp_driving", "semdp_push", "semdp_ablations", "semdp_tradeoff",

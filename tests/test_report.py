@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from semdp.report import TABLE_NAME, build_table, format_cell, main, write_report
+from semdp.report import main
 from semdp.reporting.names import algorithm_name, env_name
 from semdp.reporting.plots import aggregate_curves, smooth
 from semdp.reporting.runs import find_run_dirs, load_run, load_runs, mean_and_standard_error
+from semdp.reporting.tables import TABLE_NAME, build_table, format_cell, write_report
 
 HEADER = [
     "epoch", "env_steps", "wall_time_s", "fps", "ep_return", "ep_cost", "ep_length",

@@ -19,7 +19,7 @@ from semdp.algos.base import POLICY_NAME
 from semdp.algos.ppo_lag import PPOLag
 from semdp.algos.sac import SAC
 from semdp.common.logger import COMMON_COLUMNS, TIMING_COLUMNS
-from semdp.experiments.evaluation import load_trained
+from semdp.evaluation.loading import load_trained
 from semdp.train import run
 
 ALGOS = ["ppo", "ppo_lag", "sp_ppo_lag", "trpo", "trpo_lag", "cpo", "sac"]

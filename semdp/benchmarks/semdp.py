@@ -31,10 +31,10 @@ from typing import Any
 import torch
 
 from semdp.benchmarks.arguments import BenchArgumentError, as_int, parse_args
+from semdp.build import build_algorithm
 from semdp.configs import compose_config
 from semdp.embedded.artifacts import timing_summary
 from semdp.paths import REPO_ROOT
-from semdp.train import build_algorithm
 
 BENCH_KEYS = {"steps": "4000", "out": ""}
 PARTS: tuple[tuple[str, str], ...] = (

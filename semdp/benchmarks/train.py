@@ -30,8 +30,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from semdp.benchmarks.arguments import as_int, as_list, parse_args
+from semdp.build import build_algorithm
 from semdp.paths import CONF_DIR, REPO_ROOT
-from semdp.train import build_algorithm
 
 DEFAULTS = {"env": "speed_limit", "algos": "ppo_lag", "epochs": "3", "steps_per_epoch": "10000",
             "num_envs": "", "torch_threads": "1", "out": "", "vectorization": "",

@@ -15,11 +15,11 @@ from semdp.embedded.artifacts import find_semdp
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
 from semdp.envs import apply_wrapper, make_env, plain_wrapper
 from semdp.evaluation.errors import EvalError
-from semdp.experiments.evaluation import env_config
-from semdp.experiments.transfer import DEFAULT_SIZES, transfer_env_config
+from semdp.evaluation.loading import env_config
+from semdp.evaluation.transfer_variant import DEFAULT_SIZES, transfer_env_config
 from semdp.rendering.recorder import FrameRecorder
 
-#: The transfer variant's settings (semdp/experiments/transfer.py, Table 3.2 stand-in).
+#: The transfer variant's settings (semdp/evaluation/transfer_variant.py, Table 3.2 stand-in).
 TRANSFER_NOISE_STD = 0.05
 TRANSFER_EPISODE_STEPS = 600
 

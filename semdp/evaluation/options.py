@@ -29,7 +29,7 @@ SHORTHANDS: dict[str, str] = {
     "clearance": "the evaluation planner's eps' in metres",
     "lambda": "fixed | adaptive: the LM planner's lambda schedule",
     "perception": "lidar | lidar_refined | gt: the evaluation planner's obstacles",
-    "variant": "transfer: the perturbed Push variant of semdp/experiments/transfer.py",
+    "variant": "transfer: the perturbed Push variant of semdp/evaluation/transfer_variant.py",
     "actions": "mean (default, as the training runs' evaluations) | sampled: the stochastic "
                "policy's actions, as in training episodes (torch seeded per episode)",
 }

@@ -27,14 +27,14 @@ from semdp.evaluation.config_edits import edited_config
 from semdp.evaluation.environment import build_evaluation_env
 from semdp.evaluation.episodes import play_episode, summarise
 from semdp.evaluation.errors import EvalError
+from semdp.evaluation.loading import load_trained
 from semdp.evaluation.options import EvalOptions, parse_arguments
+from semdp.evaluation.transfer_variant import LAYOUT_SEED
 from semdp.evaluation.zoo import resolve
-from semdp.experiments.evaluation import load_trained
-from semdp.experiments.transfer import LAYOUT_SEED
 from semdp.rendering.video import write_video
 
 DEFAULT_EPISODES = 50
-#: variant=transfer: the stand-in's 10 fixed layouts (semdp/experiments/transfer.py).
+#: variant=transfer: the stand-in's 10 fixed layouts (semdp/evaluation/transfer_variant.py).
 TRANSFER_LAYOUTS = 10
 
 

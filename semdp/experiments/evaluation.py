@@ -10,71 +10,12 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
-import torch
-from omegaconf import DictConfig, OmegaConf
-
-from semdp.algos.base import CHECKPOINT_NAME, POLICY_NAME, Algorithm
+from semdp.algos.base import Algorithm
 from semdp.envs import make_vec_env
-from semdp.train import build_algorithm
 
 logger = logging.getLogger(__name__)
-
-
-def load_trained(
-    run_dir: str | Path, cfg: DictConfig | None = None
-) -> tuple[Algorithm, DictConfig]:
-    """Rebuild the algorithm of a finished run from ``config.yaml`` and ``checkpoints/last.pt``,
-    or from its trained policy alone (``policy.pt``, what reference folders keep).
-
-    Sets torch's thread count to the run's ``torch_threads`` (1 by default), as training did:
-    float reductions depend on it, so an evaluation is reproducible on any machine.
-
-    Args:
-        run_dir: the run directory.
-        cfg: the config to build from (e.g. the saved one with evaluation-time changes);
-            ``None`` = the run's ``config.yaml``.
-
-    Raises:
-        ValueError: ``run_dir`` lacks ``config.yaml`` or both the checkpoint and the policy, or
-            they were written by another algorithm than the config's.
-    """
-    run_dir = Path(run_dir)
-    ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
-    policy = run_dir / POLICY_NAME
-    if not (run_dir / "config.yaml").is_file() or not (ckpt.is_file() or policy.is_file()):
-        raise ValueError(f"{run_dir} is not a finished run dir (needs config.yaml and "
-                         f"checkpoints/{ckpt.name} or {POLICY_NAME})")
-    if cfg is None:
-        cfg = OmegaConf.load(run_dir / "config.yaml")
-    torch.set_num_threads(int(cfg.get("torch_threads", 1) or 1))
-    algo = build_algorithm(cfg)
-    if ckpt.is_file():
-        state = torch.load(ckpt, weights_only=False)["algo"]
-        check_checkpoint_fits(algo, state, cfg)
-        algo.load_state_dict(state)
-        return algo, cfg
-    saved = torch.load(policy, weights_only=False)
-    if saved["algorithm"] != type(algo).__name__:
-        raise ValueError(f"{POLICY_NAME} was written by {saved['algorithm']}, config.yaml "
-                         f"builds {type(algo).__name__}")
-    algo.load_policy_state(saved["policy"])
-    algo.epoch, algo.env_steps = int(saved["epoch"]), int(saved["env_steps"])
-    return algo, cfg
-
-
-def check_checkpoint_fits(algo: Algorithm, state: Mapping[str, Any], cfg: DictConfig) -> None:
-    """Raise ``ValueError`` unless ``state`` has the keys of ``algo``'s own checkpoints."""
-    expected, found = set(algo.state_dict()), set(state)
-    if expected != found:
-        name = cfg.get("algo_name") or str(cfg.algo.get("_target_", "?"))
-        raise ValueError(
-            f"checkpoints/{CHECKPOINT_NAME} was not written by {name} "
-            f"({type(algo).__name__}, the algorithm of config.yaml): missing "
-            f"{sorted(expected - found)}, unexpected {sorted(found - expected)}"
-        )
 
 
 def evaluate_on(
@@ -95,15 +36,6 @@ def evaluate_on(
     finally:
         algo.eval_envs = saved
         envs.close()
-
-
-def env_config(cfg: DictConfig) -> dict[str, Any]:
-    """The run's env node as a plain dict (interpolations resolved, wrappers left as nodes)."""
-    node = OmegaConf.to_container(cfg.env, resolve=True)
-    if not isinstance(node, dict):
-        raise ValueError(f"cfg.env must be a mapping, got {type(node).__name__}")
-    node.pop("post_train", None)
-    return node
 
 
 def chain_post_train(hook_cfg: Any, **kwargs: Any) -> dict[str, Any]:

@@ -27,7 +27,7 @@ from typing import Any
 from omegaconf import OmegaConf
 
 from semdp.experiments.archive import archive_sweep, read_timing
-from semdp.report import parse_compare, parse_marks, write_report
+from semdp.reporting.tables import parse_compare, parse_marks, write_report
 
 RUNS_DIR = "runs"
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from semdp.report import late_training_values
 from semdp.reporting.runs import load_runs, mean_and_standard_error
+from semdp.reporting.tables import late_training_values
 
 HERE = Path(__file__).resolve().parent
 METHODS = ("CPO", "PPO-Lag", "TRPO-Lag")
