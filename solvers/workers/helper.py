@@ -167,7 +167,7 @@ class Helper:
         self._owner = os.getpid()
         _open_caller_ends.add(conn)
         self._finalizer = weakref.finalize(self, _stop, process, conn, CLOSE_TIMEOUT_S,
-                                           os.getpid())
+                                           self._owner)
 
     # ----------------------------------------------------------------- starting
     @classmethod
