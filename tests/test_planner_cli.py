@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import subprocess
 import sys
@@ -48,6 +49,12 @@ def test_planner_benchmark_writes_table_and_csv(tmp_path: Path, capsys) -> None:
     assert "| ipopt[batch3] | 3 | 1 (0) |" in printed  # the batch-vs-loop table
     summary = (tmp_path / "planner_summary.csv").read_text().splitlines()
     assert summary[0].startswith("variant,n,median_ms,mean_ms") and len(summary) == 5
+    # the plans' digest: the batch (one process, workers=1) plans exactly what the loop plans
+    with open(tmp_path / "planner_summary.csv", newline="") as handle:
+        digests = {row["variant"]: row["plans_sha256"] for row in csv.DictReader(handle)}
+    assert all(len(d) == 64 for d in digests.values())
+    assert digests["ipopt"] == digests["ipopt[batch3]"] and digests["lm"] == digests["lm[batch3]"]
+    assert digests["ipopt"] != digests["lm"]
     assert len((tmp_path / "planner_results.csv").read_text().splitlines()) == 1 + 4 * 6
     batch = (tmp_path / "planner_batch.csv").read_text().splitlines()
     assert batch[0].startswith("variant,batch,workers,helpers,loop_ms,batch_ms") and len(batch) == 3
@@ -122,3 +129,28 @@ def test_plan_bad_planner_setting_is_one_value_error(tmp_path: Path) -> None:
                             "subgoal": [1, 0], "obstacles": [], "plot": False})
     with pytest.raises(ValueError, match=r"^planner: clearance must be a finite number >= 0"):
         plan_app.run(cfg, tmp_path)
+
+
+def test_plans_sha256_hashes_waypoints_and_flags_in_order() -> None:
+    import hashlib
+
+    import numpy as np
+
+    from solvers.planner import PlanResult
+
+    def result(offset: float, status: str = "solved") -> PlanResult:
+        waypoints = np.arange(6, dtype=float).reshape(3, 2) + offset
+        return PlanResult(waypoints, np.zeros((3, 2)), True, status, False, False, 0.0,
+                          float("inf"), float("inf"), 1, 0.0, "lm", True)
+
+    plans = [result(0.0), result(1.0)]
+    expected = hashlib.sha256()
+    for plan in plans:
+        expected.update(plan.waypoints.tobytes())
+        expected.update(f"{plan.status}|True|False|False|False\n".encode())
+    digest = planner_bench.plans_sha256(plans)
+    assert digest == expected.hexdigest()  # the definition the recorded digests rely on
+    assert planner_bench.plans_sha256(plans[::-1]) != digest
+    assert planner_bench.plans_sha256([plans[0], result(1.0, "max_iter")]) != digest
+    times_differ = [dataclasses.replace(p, solve_time_s=9.0) for p in plans]
+    assert planner_bench.plans_sha256(times_differ) == digest

@@ -13,12 +13,15 @@ Its times are per problem (call time / B), so compare them with the ``mean ms`` 
 second table sets the batch against a loop of ``plan`` over the same chunks, timed alternately
 with it (same machine load), and gives the largest waypoint difference between the two. Writes
 ``planner_summary.csv``, ``planner_results.csv`` (one row per problem and variant) and
-``planner_batch.csv`` to ``out`` (default ``outputs/benchmarks/planner``).
+``planner_batch.csv`` to ``out`` (default ``outputs/benchmarks/planner``). The summary's
+``plans_sha256`` column (also printed) hashes each variant's plans (waypoints and certificate
+flags, problem order): equal digests across two code versions mean bit-identical plans.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import platform
 import time
 from pathlib import Path
@@ -35,6 +38,19 @@ from solvers.planner import (
 )
 
 THESIS_THESEUS_MS = 63.0
+
+
+def plans_sha256(results: list) -> str:
+    """SHA-256 over a variant's plans in problem order: each plan's waypoint array (float64,
+    C order) and its certificate flags (``status``, ``feasible``, ``fallback``, ``escape_mode``,
+    ``rescued``). Equal digests mean bit-identical plans (a refactor's regression check)."""
+    digest = hashlib.sha256()
+    for result in results:
+        digest.update(np.ascontiguousarray(result.waypoints, dtype=np.float64).tobytes())
+        flags = (result.status, result.feasible, result.fallback, result.escape_mode,
+                 result.rescued)
+        digest.update(("|".join(str(f) for f in flags) + "\n").encode())
+    return digest.hexdigest()
 
 VARIANTS: dict[str, dict[str, object]] = {
     "ipopt": {"backend": "ipopt"},
@@ -117,6 +133,7 @@ def main(argv: list[str]) -> None:
             "reached_pct": 100 * reached[label].mean(),
             "iters_median": float(np.median([r.iterations for r in results])),
             "speedup_vs_theseus": THESIS_THESEUS_MS / np.median(ms),
+            "plans_sha256": plans_sha256(results),
         })
     reference = "ipopt" if "ipopt" in objectives else None
     for row in summary:
@@ -173,6 +190,11 @@ def main(argv: list[str]) -> None:
                 f"{row['loop_ms']:.3f} | {row['batch_ms']:.3f} | {row['speedup']:.2f} | "
                 f"{row['max_diff']:.1e} |"
             )
+    print()
+    print("| variant | plans SHA-256 (waypoints and certificate flags, problem order) |")
+    print("|---|---|")
+    for row in summary:
+        print(f"| {row['variant']} | {row['plans_sha256']} |")
     print(f"wrote {out / 'planner_summary.csv'} and {out / 'planner_results.csv'}"
           + (f" and {out / 'planner_batch.csv'}" if batch_rows else ""))
 
