@@ -1,17 +1,10 @@
-"""Self-paced Lagrangian on the toy problem of thesis §2.5.1 (Eq. 2.11, Fig. 2.1).
+"""Self-paced Lagrangian on the toy problem of thesis §2.5.1 (Eq. 2.11, Fig. 2.1, Alg. 1).
 
-The problem::
-
-    min_x f(x) = (x - pi)^2 / 50    s.t.    c(x) = -5 cos(x) <= d
-
-is built once, symbolically, in CasADi: ``f``, ``c`` and their gradients are ``cs.Function``
-objects and the IPOPT solver is one parametric ``nlpsol`` with the threshold ``d`` as its
-parameter. For ``d = 0`` the feasible set is the union of the intervals
-``[-pi/2 + 2k pi, pi/2 + 2k pi]``; the global minimisers are ``pi/2`` and ``3 pi/2``
-(``f* = pi^2/200``) and a start in ``[-5pi/2, -3pi/2]`` has the local minimiser ``-3pi/2``
-(``f = 25 pi^2/200 ~ 1.2337``) in its own component.
-
-Methods (one :class:`SelfPacedLagrangianToy` holds the shared settings):
+The problem ``min (x - pi)^2 / 50 s.t. -5 cos(x) <= d`` and its CasADi/IPOPT model are in
+:mod:`solvers.toy_problem`; the results in :mod:`solvers.toy_results`; the threshold curriculum
+in :mod:`solvers.threshold_schedule`. This module holds the methods compared in Fig. 2.1 (one
+:class:`SelfPacedLagrangianToy` holds the shared settings) and re-exports the names its users
+import from here (``conf/toy.yaml``'s ``_target_`` names this module's class):
 
 * :meth:`~SelfPacedLagrangianToy.lagrangian` -- primal-dual dynamics on ``L = f + lam (c - d)``
   (Eqs. 2.4-2.5 with ``d = 0``): Adam on ``x``, dual ascent on ``lam >= 0`` every
@@ -28,198 +21,32 @@ from __future__ import annotations
 
 import logging
 import math
-import numbers
-from dataclasses import dataclass, field
 
-import casadi as cs
 import numpy as np
-import numpy.typing as npt
 
+from solvers.scalar_adam import ScalarAdam
 from solvers.threshold_schedule import THRESHOLD_RULES, ThresholdSchedule, threshold_schedule
+from solvers.toy_problem import GLOBAL_OPTIMUM_VALUE, LOCAL_OPTIMUM_VALUE, ToyProblem
+from solvers.toy_results import DynamicsResult, FloatArray, IpoptResult, frozen_array
+from solvers.validation import check_choice, check_int, check_positive, check_real
+
+__all__ = [
+    "GLOBAL_OPTIMUM_VALUE",
+    "LAMBDA_OPTIMIZERS",
+    "LOCAL_OPTIMUM_VALUE",
+    "THRESHOLD_RULES",
+    "DynamicsResult",
+    "FloatArray",
+    "IpoptResult",
+    "SelfPacedLagrangianToy",
+    "ToyProblem",
+]
 
 logger = logging.getLogger(__name__)
 
 #: Multiplier updates. ``"sgd"``: Eq. 2.10, ``lam <- max(0, lam + lr_lambda (c(x) - d_i))``.
 #: ``"adam"``: Adam ascent on ``lam`` with learning rate ``lr_lambda``, projected onto ``lam >= 0``.
 LAMBDA_OPTIMIZERS: tuple[str, ...] = ("sgd", "adam")
-
-#: Optimal value of Eq. 2.11 (attained at x = pi/2 and x = 3 pi/2).
-GLOBAL_OPTIMUM_VALUE: float = math.pi**2 / 200.0
-#: Value at the local minimiser -3 pi/2 of the component [-5 pi/2, -3 pi/2].
-LOCAL_OPTIMUM_VALUE: float = 25.0 * math.pi**2 / 200.0
-
-FloatArray = npt.NDArray[np.float64]
-
-
-def _check_real(name: str, value: object) -> float:
-    """Return ``value`` as a finite float or raise ValueError naming the parameter."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a finite real number, got {value!r}")
-    result = float(value)
-    if not math.isfinite(result):
-        raise ValueError(f"{name} must be a finite real number, got {value!r}")
-    return result
-
-
-def _check_int(name: str, value: object, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _check_positive(name: str, value: object) -> float:
-    result = _check_real(name, value)
-    if result <= 0.0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    return result
-
-
-def _check_choice(name: str, value: object, options: tuple[str, ...]) -> str:
-    if value not in options:
-        raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
-    return str(value)
-
-
-class _Adam:
-    """Adam (Kingma & Ba) on a scalar, with a learning-rate multiplier per step."""
-
-    def __init__(self, lr: float, beta1: float, beta2: float, eps: float = 1e-8) -> None:
-        self.lr, self.beta1, self.beta2, self.eps = lr, beta1, beta2, eps
-        self.m = 0.0
-        self.v = 0.0
-        self.t = 0
-
-    def step(self, grad: float, lr_scale: float = 1.0) -> float:
-        """Return the descent step ``lr * m_hat / (sqrt(v_hat) + eps)`` for gradient ``grad``."""
-        self.t += 1
-        self.m = self.beta1 * self.m + (1.0 - self.beta1) * grad
-        self.v = self.beta2 * self.v + (1.0 - self.beta2) * grad * grad
-        m_hat = self.m / (1.0 - self.beta1**self.t)
-        v_hat = self.v / (1.0 - self.beta2**self.t)
-        return lr_scale * self.lr * m_hat / (math.sqrt(v_hat) + self.eps)
-
-
-def _frozen(values: list[float] | FloatArray) -> FloatArray:
-    array = np.asarray(values, dtype=np.float64)
-    array.setflags(write=False)
-    return array
-
-
-@dataclass(frozen=True)
-class DynamicsResult:
-    """Outcome of the Adam primal-dual dynamics (plain or self-paced Lagrangian).
-
-    Attributes:
-        method: ``"lagrangian"`` or ``"self_paced_<rule>"``.
-        x, f, c: final iterate and its objective and constraint values.
-        lagrange_multiplier: final ``lam``.
-        threshold: the threshold in force at the end (0 when the curriculum finished).
-        iterations: number of x updates.
-        reached_global: ``|f - f*| <= global_tol`` and ``c <= feasibility_tol``.
-        x_history, f_history, c_history, lambda_history, threshold_history: one entry per
-            iteration, the initial point first (length ``iterations + 1``).
-    """
-
-    method: str
-    x: float
-    f: float
-    c: float
-    lagrange_multiplier: float
-    threshold: float
-    iterations: int
-    reached_global: bool
-    x_history: FloatArray = field(repr=False)
-    f_history: FloatArray = field(repr=False)
-    c_history: FloatArray = field(repr=False)
-    lambda_history: FloatArray = field(repr=False)
-    threshold_history: FloatArray = field(repr=False)
-
-
-@dataclass(frozen=True)
-class IpoptResult:
-    """Outcome of an IPOPT solve (direct, homotopy or multi-start).
-
-    Attributes:
-        method: ``"ipopt_direct"``, ``"ipopt_homotopy"`` or ``"ipopt_multistart"``.
-        x, f, c: solution and its objective and constraint values.
-        lagrange_multiplier: IPOPT's multiplier of ``c(x) - d <= 0`` at the last solve.
-        iterations: total IPOPT iterations over all solves.
-        success: every solve reported ``Solve_Succeeded`` (multi-start: the best one did).
-        reached_global: ``|f - f*| <= global_tol`` and ``c <= feasibility_tol``.
-        thresholds: threshold ``d`` of each solve (homotopy: the curriculum; multi-start: 0 per
-            start).
-        x_path: solution of each solve, aligned with ``thresholds`` (multi-start: the starts'
-            local solutions).
-    """
-
-    method: str
-    x: float
-    f: float
-    c: float
-    lagrange_multiplier: float
-    iterations: int
-    success: bool
-    reached_global: bool
-    thresholds: FloatArray = field(repr=False)
-    x_path: FloatArray = field(repr=False)
-
-
-class ToyProblem:
-    """CasADi model of Eq. 2.11: ``f``, ``c``, their gradients and a parametric IPOPT solver.
-
-    Attributes:
-        objective: ``cs.Function`` x -> f(x).
-        constraint: ``cs.Function`` x -> c(x).
-        terms: ``cs.Function`` x -> (f, c, df/dx, dc/dx), all from CasADi's AD.
-        nlp_solver: ``nlpsol`` for ``min f(x) s.t. c(x) - d <= 0`` with parameter ``d``.
-    """
-
-    def __init__(self, ipopt_options: dict[str, object] | None = None) -> None:
-        x_sym = cs.SX.sym("x")
-        d_sym = cs.SX.sym("d")
-        f_sym = (x_sym - cs.pi) ** 2 / 50.0
-        c_sym = -5.0 * cs.cos(x_sym)
-        self.objective = cs.Function("objective", [x_sym], [f_sym], ["x"], ["f"])
-        self.constraint = cs.Function("constraint", [x_sym], [c_sym], ["x"], ["c"])
-        self.terms = cs.Function(
-            "terms",
-            [x_sym],
-            [f_sym, c_sym, cs.gradient(f_sym, x_sym), cs.gradient(c_sym, x_sym)],
-            ["x"],
-            ["f", "c", "df", "dc"],
-        )
-        options: dict[str, object] = {
-            "ipopt.print_level": 0,
-            "ipopt.sb": "yes",
-            "ipopt.tol": 1e-12,
-            "ipopt.constr_viol_tol": 1e-10,
-            "print_time": False,
-        }
-        options.update(ipopt_options or {})
-        nlp = {"x": x_sym, "p": d_sym, "f": f_sym, "g": c_sym - d_sym}
-        self.nlp_solver = cs.nlpsol("toy_nlp", "ipopt", nlp, options)
-
-    def evaluate(self, x: float) -> tuple[float, float, float, float]:
-        """Return ``(f, c, df/dx, dc/dx)`` at ``x``."""
-        f, c, df, dc = self.terms(x)
-        return float(f), float(c), float(df), float(dc)
-
-    def solve(
-        self, x_init: float, threshold: float, lam_init: float = 0.0
-    ) -> tuple[float, float, int, bool]:
-        """One IPOPT solve of ``min f s.t. c <= threshold`` from ``x_init``.
-
-        Returns:
-            ``(x, lam, iterations, success)``.
-        """
-        solution = self.nlp_solver(x0=x_init, p=threshold, lbg=-cs.inf, ubg=0.0, lam_g0=lam_init)
-        stats = self.nlp_solver.stats()
-        return (
-            float(solution["x"]),
-            float(solution["lam_g"]),
-            int(stats.get("iter_count", 0)),
-            bool(stats.get("success", False)),
-        )
 
 
 class SelfPacedLagrangianToy:
@@ -271,37 +98,37 @@ class SelfPacedLagrangianToy:
         global_tol: float = 1e-3,
         feasibility_tol: float = 1e-4,
     ) -> None:
-        self.lr_x = _check_positive("lr_x", lr_x)
-        self.lr_lambda = _check_positive("lr_lambda", lr_lambda)
-        self.lambda_init = _check_real("lambda_init", lambda_init)
+        self.lr_x = check_positive("lr_x", lr_x)
+        self.lr_lambda = check_positive("lr_lambda", lr_lambda)
+        self.lambda_init = check_real("lambda_init", lambda_init)
         if self.lambda_init < 0.0:
             raise ValueError(f"lambda_init must be >= 0, got {lambda_init!r}")
-        self.lambda_optimizer = _check_choice(
+        self.lambda_optimizer = check_choice(
             "lambda_optimizer", lambda_optimizer, LAMBDA_OPTIMIZERS
         )
-        self.lambda_update_every = _check_int("lambda_update_every", lambda_update_every, 1)
-        self.n_iterations = _check_int("n_iterations", n_iterations, 1)
-        self.lr_decay = _check_positive("lr_decay", lr_decay)
+        self.lambda_update_every = check_int("lambda_update_every", lambda_update_every, 1)
+        self.n_iterations = check_int("n_iterations", n_iterations, 1)
+        self.lr_decay = check_positive("lr_decay", lr_decay)
         if self.lr_decay > 1.0:
             raise ValueError(f"lr_decay must be in (0, 1], got {lr_decay!r}")
         for name, value in (("adam_beta1", adam_beta1), ("adam_beta2", adam_beta2)):
-            if not 0.0 <= _check_real(name, value) < 1.0:
+            if not 0.0 <= check_real(name, value) < 1.0:
                 raise ValueError(f"{name} must be in [0, 1), got {value!r}")
         self.adam_beta1, self.adam_beta2 = float(adam_beta1), float(adam_beta2)
         self.schedule = threshold_schedule(initial_exponent, num_thresholds)
         self.initial_exponent, self.num_thresholds = int(initial_exponent), int(num_thresholds)
-        self.threshold_rule = _check_choice("threshold_rule", threshold_rule, THRESHOLD_RULES)
-        self.stationarity_tol = _check_positive("stationarity_tol", stationarity_tol)
-        self.multistart_points = _check_int("multistart_points", multistart_points, 1)
+        self.threshold_rule = check_choice("threshold_rule", threshold_rule, THRESHOLD_RULES)
+        self.stationarity_tol = check_positive("stationarity_tol", stationarity_tol)
+        self.multistart_points = check_int("multistart_points", multistart_points, 1)
         if len(multistart_range) != 2:
             raise ValueError(f"multistart_range must be (low, high), got {multistart_range!r}")
-        low = _check_real("multistart_range[0]", multistart_range[0])
-        high = _check_real("multistart_range[1]", multistart_range[1])
+        low = check_real("multistart_range[0]", multistart_range[0])
+        high = check_real("multistart_range[1]", multistart_range[1])
         if not low < high:
             raise ValueError(f"multistart_range must satisfy low < high, got {multistart_range!r}")
         self.multistart_range = (low, high)
-        self.global_tol = _check_positive("global_tol", global_tol)
-        self.feasibility_tol = _check_positive("feasibility_tol", feasibility_tol)
+        self.global_tol = check_positive("global_tol", global_tol)
+        self.feasibility_tol = check_positive("feasibility_tol", feasibility_tol)
         self.problem = ToyProblem()
 
     # ------------------------------------------------------------------ helpers
@@ -322,16 +149,16 @@ class SelfPacedLagrangianToy:
             threshold_rule: overrides the instance's rule (one of :data:`THRESHOLD_RULES`).
         """
         rule = self.threshold_rule if threshold_rule is None else threshold_rule
-        rule = _check_choice("threshold_rule", rule, THRESHOLD_RULES)
+        rule = check_choice("threshold_rule", rule, THRESHOLD_RULES)
         return self._dynamics(x0, schedule=self.schedule, rule=rule, method=f"self_paced_{rule}")
 
     def _dynamics(
         self, x0: float, schedule: tuple[float, ...], rule: str, method: str
     ) -> DynamicsResult:
-        x = _check_real("x0", x0)
+        x = check_real("x0", x0)
         lam = self.lambda_init
-        x_optimizer = _Adam(self.lr_x, self.adam_beta1, self.adam_beta2)
-        lambda_optimizer = _Adam(self.lr_lambda, self.adam_beta1, self.adam_beta2)
+        x_optimizer = ScalarAdam(self.lr_x, self.adam_beta1, self.adam_beta2)
+        lambda_optimizer = ScalarAdam(self.lr_lambda, self.adam_beta1, self.adam_beta2)
         curriculum = ThresholdSchedule(
             schedule, rule, index=0 if rule == "tighten" else len(schedule) - 1
         )
@@ -371,11 +198,11 @@ class SelfPacedLagrangianToy:
             threshold=threshold,
             iterations=self.n_iterations,
             reached_global=self.reached_global(f, c),
-            x_history=_frozen(history["x"]),
-            f_history=_frozen(history["f"]),
-            c_history=_frozen(history["c"]),
-            lambda_history=_frozen(history["lam"]),
-            threshold_history=_frozen(history["d"]),
+            x_history=frozen_array(history["x"]),
+            f_history=frozen_array(history["f"]),
+            c_history=frozen_array(history["c"]),
+            lambda_history=frozen_array(history["lam"]),
+            threshold_history=frozen_array(history["d"]),
         )
 
     # ------------------------------------------------------------------ IPOPT
@@ -399,13 +226,13 @@ class SelfPacedLagrangianToy:
             iterations=iterations,
             success=success,
             reached_global=self.reached_global(f, c),
-            thresholds=_frozen(thresholds),
-            x_path=_frozen(x_path),
+            thresholds=frozen_array(thresholds),
+            x_path=frozen_array(x_path),
         )
 
     def ipopt_direct(self, x0: float) -> IpoptResult:
         """IPOPT on ``c(x) <= 0`` from ``x0``: a local solution (the component of the start)."""
-        x_start = _check_real("x0", x0)
+        x_start = check_real("x0", x0)
         x, lam, iterations, success = self.problem.solve(x_start, 0.0)
         return self._ipopt_result("ipopt_direct", x, lam, iterations, success, [0.0], [x])
 
@@ -417,7 +244,7 @@ class SelfPacedLagrangianToy:
         stage returns the unconstrained minimiser ``pi``; the tightening stages then move the
         solution outwards along the boundary ``c(x) = d`` to ``pi/2`` or ``3 pi/2``.
         """
-        x = _check_real("x0", x0)
+        x = check_real("x0", x0)
         lam, total_iterations, all_success = 0.0, 0, True
         x_path: list[float] = []
         for threshold in self.schedule:
@@ -457,7 +284,7 @@ class SelfPacedLagrangianToy:
 
     def solve_all(self, x0: float) -> dict[str, DynamicsResult | IpoptResult]:
         """Every method from ``x0``: plain and self-paced dynamics, IPOPT direct/homotopy/global."""
-        _check_real("x0", x0)
+        check_real("x0", x0)
         return {
             "lagrangian": self.lagrangian(x0),
             "self_paced": self.self_paced(x0),
