@@ -12,7 +12,8 @@ from __future__ import annotations
 from gymnasium.envs.registration import register, registry
 
 from sims.driving.controller import PurePursuitController, run_episode
-from sims.driving.env import DriveCircleEnv, DriveTrajectoryEnv, DrivingEnv
+from sims.driving.env import DrivingEnv
+from sims.driving.tasks import DriveCircleEnv, DriveTrajectoryEnv
 from sims.driving.tracks import CircleTrack, RandomPathTrack
 from sims.driving.vehicle import BicycleModel, VehicleParams, fiala_lateral_force
 
@@ -30,8 +31,8 @@ __all__ = [
 ]
 
 for _env_id, _entry_point in (
-    ("sims/DriveCircle-v0", "sims.driving.env:DriveCircleEnv"),
-    ("sims/DriveTrajectory-v0", "sims.driving.env:DriveTrajectoryEnv"),
+    ("sims/DriveCircle-v0", "sims.driving.tasks:DriveCircleEnv"),
+    ("sims/DriveTrajectory-v0", "sims.driving.tasks:DriveTrajectoryEnv"),
 ):
     if _env_id not in registry:
         register(id=_env_id, entry_point=_entry_point, disable_env_checker=False)

@@ -35,7 +35,11 @@ the named cost terms), so that leaving the road never shortens the penalties of 
 
 Actions ``[steer, throttle]`` in [-1, 1]^2: ``delta = steer * max_steer``; ``throttle >= 0``
 drives the rear axle with ``throttle * max_drive_force``, ``throttle < 0`` brakes with
-``throttle * max_brake_force``. Out-of-range actions are clipped; NaN raises ValueError.
+``throttle * max_brake_force``. Out-of-range actions are clipped; NaN raises ValueError
+(:func:`sims.driving.inputs.parse_action`).
+
+This module is the MDP both tasks share (:class:`DrivingEnv`); the tasks themselves, the
+circle and the random path, are in :mod:`sims.driving.tasks`.
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from sims.driving.inputs import check_range, parse_action
 from sims.driving.render import render_top_down
 from sims.driving.tracks import CircleTrack, RandomPathTrack, wrap_angle
 from sims.driving.vehicle import BicycleModel, VehicleParams
@@ -97,11 +102,11 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
         vehicle: VehicleParams | None = None,
         render_mode: str | None = None,
     ) -> None:
-        _check_range("desired_speed", desired_speed, 0.0, DESIRED_SPEED_MAX, "(0, 10] m/s")
-        _check_range("road_width", road_width, 0.0, 10.0, "(0, 10] m")
-        _check_range("dt", dt, 0.0, 0.2, "(0, 0.2] s")
-        _check_range("max_substep", max_substep, 0.0, 0.025, "(0, 0.025] s")
-        _check_range("off_road_margin", off_road_margin, 0.0, 10.0, "(0, 10] m")
+        check_range("desired_speed", desired_speed, 0.0, DESIRED_SPEED_MAX, "(0, 10] m/s")
+        check_range("road_width", road_width, 0.0, 10.0, "(0, 10] m")
+        check_range("dt", dt, 0.0, 0.2, "(0, 0.2] s")
+        check_range("max_substep", max_substep, 0.0, 0.025, "(0, 0.025] s")
+        check_range("off_road_margin", off_road_margin, 0.0, 10.0, "(0, 10] m")
         for name, weight in (("speed_weight", speed_weight), ("heading_weight", heading_weight)):
             if not (math.isfinite(weight) and weight >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {weight!r}")
@@ -237,7 +242,7 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Apply ``[steer, throttle]`` for ``dt`` seconds; returns the gymnasium 5-tuple."""
-        steer, throttle = _parse_action(action)
+        steer, throttle = parse_action(action)
         force = throttle * (self._max_drive if throttle >= 0.0 else self._max_brake)
         x, y, psi, v_x, v_y, r = self.model.step(
             self._state, steer * self._max_steer, force, self.dt, self.substeps)
@@ -294,132 +299,3 @@ class DrivingEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.render_mode is None:
             return None
         return render_top_down(self)
-
-
-class DriveCircleEnv(DrivingEnv):
-    """``sims/DriveCircle-v0``: follow a counter-clockwise circle (App. A.2, Fig. A.2 left).
-
-    Args:
-        radius: Circle radius [m] (default 1 m, as aa_simulation's CircleEnv).
-        **kwargs: See :class:`DrivingEnv`.
-    """
-
-    def __init__(self, radius: float = 1.0, **kwargs: Any) -> None:
-        self.radius = float(radius)
-        super().__init__(**kwargs)
-
-    def _make_track(self) -> CircleTrack:
-        return CircleTrack(self.radius)
-
-    def _start_arc_length(self) -> float:
-        return float(self.np_random.uniform(0.0, 2.0 * math.pi * self.radius))
-
-
-class DriveTrajectoryEnv(DrivingEnv):
-    """``sims/DriveTrajectory-v0``: follow a seeded random smooth path (App. A.2, Fig. A.2 right).
-
-    A new path (:class:`RandomPathTrack`) is drawn from the env's generator at every reset; its
-    length covers ``episode_length * dt`` at 10.5 m/s (above the top speed) plus the preview.
-
-    Args:
-        preview_points: K, number of centre-line points in the observation.
-        preview_spacing: Arc-length spacing of those points [m] (multiple of 0.05 m).
-        max_curvature: Largest path curvature [1/m] (tightest turn radius 1.5 m by default).
-        max_heading: Largest heading deviation of the path from +x [rad].
-        **kwargs: See :class:`DrivingEnv`.
-    """
-
-    SPACING = 0.05
-    START_ARC_LENGTH = 2.0
-
-    def __init__(
-        self,
-        preview_points: int = 10,
-        preview_spacing: float = 0.4,
-        max_curvature: float = 1.0 / 1.5,
-        max_heading: float = 1.0,
-        **kwargs: Any,
-    ) -> None:
-        if int(preview_points) != preview_points or not 1 <= preview_points <= 50:
-            raise ValueError(f"preview_points must be an integer in [1, 50], "
-                             f"got {preview_points!r}")
-        stride = round(preview_spacing / self.SPACING)
-        if stride < 1 or abs(stride * self.SPACING - preview_spacing) > 1e-9:
-            raise ValueError(f"preview_spacing must be a positive multiple of {self.SPACING} m, "
-                             f"got {preview_spacing!r}")
-        self.preview_points = int(preview_points)
-        self.preview_spacing = float(preview_spacing)
-        self._stride = int(stride)
-        self.max_curvature = float(max_curvature)
-        self.max_heading = float(max_heading)
-        self._path_length = 0.0
-        super().__init__(**kwargs)
-
-    def _make_track(self) -> RandomPathTrack:
-        self._path_length = (10.5 * self.episode_length * self.dt + self.START_ARC_LENGTH
-                             + self.preview_points * self.preview_spacing + 2.0)
-        return self._draw_track(np.random.default_rng(0))
-
-    def _draw_track(self, rng: np.random.Generator) -> RandomPathTrack:
-        return RandomPathTrack(rng, length=self._path_length, spacing=self.SPACING,
-                               max_heading=self.max_heading, max_curvature=self.max_curvature)
-
-    def _new_episode_track(self, rng: np.random.Generator) -> None:
-        self.track = self._draw_track(rng)
-
-    def _start_arc_length(self) -> float:
-        return self.START_ARC_LENGTH
-
-    def _path_ended(self) -> bool:
-        return self._hint + self.preview_points * self._stride >= self.track.last_index
-
-    def _extra_bounds(self) -> tuple[list[float], list[float]]:
-        bound = self.preview_points * self.preview_spacing + self.d_bound + 1.0
-        return [-bound] * (2 * self.preview_points), [bound] * (2 * self.preview_points)
-
-    def _extra_observation(self, x: float, y: float, psi: float) -> list[float]:
-        track = self.track
-        xs, ys = track.xs, track.ys
-        c = math.cos(psi)
-        s = math.sin(psi)
-        last = track.last_index
-        out: list[float] = []
-        index = self._hint
-        for _ in range(self.preview_points):
-            index += self._stride
-            i = index if index < last else last
-            dx = xs[i] - x
-            dy = ys[i] - y
-            out.append(c * dx + s * dy)
-            out.append(c * dy - s * dx)
-        return out
-
-
-def _check_range(name: str, value: float, low: float, high: float, valid: str) -> None:
-    try:
-        number = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a number in {valid}, got {value!r}") from exc
-    if not (math.isfinite(number) and low < number <= high):
-        raise ValueError(f"{name} must be in {valid}, got {value!r}")
-
-
-def _parse_action(action: Any) -> tuple[float, float]:
-    """``(steer, throttle)`` clipped to [-1, 1]; raises ValueError on NaN or a wrong shape."""
-    if isinstance(action, np.ndarray):
-        if action.shape != (2,):
-            raise ValueError(f"action must have shape (2,) = [steer, throttle], "
-                             f"got shape {action.shape}")
-        steer, throttle = action.tolist()
-    else:
-        try:
-            steer, throttle = (float(v) for v in action)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"action must be two numbers [steer, throttle], "
-                             f"got {action!r}") from exc
-    if steer != steer or throttle != throttle:
-        raise ValueError(f"action contains NaN: {action!r}; expected [steer, throttle] in "
-                         f"[-1, 1]")
-    steer = 1.0 if steer > 1.0 else (-1.0 if steer < -1.0 else steer)
-    throttle = 1.0 if throttle > 1.0 else (-1.0 if throttle < -1.0 else throttle)
-    return float(steer), float(throttle)
