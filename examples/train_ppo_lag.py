@@ -5,7 +5,7 @@ algorithm of thesis §2.3 with the Adam multiplier; no Hydra needed).
 """
 
 from semdp.algos import PPOLag
-from semdp.common.lagrange import Lagrange
+from semdp.algos.lagrangian import Lagrange
 from semdp.envs import make_vec_env
 
 envs = make_vec_env({"id": "sims/SafetyPointGoal1-v0", "num_envs": 4}, seed=0)

@@ -32,6 +32,7 @@ from semdp.algos.base import CHECKPOINT_NAME, Algorithm
 from semdp.build import ConfigError, build_algorithm, validate_config
 from semdp.common.logger import write_metrics
 from semdp.paths import CONF_DIR
+from semdp.run_config import load_run_config
 from semdp.run_logging import progress_logging
 from solvers.workers import HelperError
 
@@ -79,7 +80,7 @@ def _auto_resume(cfg: DictConfig, run_dir: Path) -> str | dict[str, Any] | None:
     """
     if not (run_dir / "config.yaml").is_file():
         return None
-    saved = OmegaConf.load(run_dir / "config.yaml")
+    saved = load_run_config(run_dir)
     wanted = cfg.copy()
     with open_dict(wanted):
         wanted.algo_name, wanted.env_name = _names(cfg)
@@ -124,7 +125,7 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
         ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
         if not ckpt.is_file() or not (run_dir / "config.yaml").is_file():
             raise ConfigError(f"resume={resume}: no config.yaml and checkpoints/{CHECKPOINT_NAME}")
-        cfg = OmegaConf.load(run_dir / "config.yaml")
+        cfg = load_run_config(run_dir)
         with open_dict(cfg):
             cfg.resume = str(resume)
     validate_config(cfg)

@@ -2,7 +2,7 @@
 
 One implementation for both users: the toy problem's dynamics
 (:mod:`solvers.self_paced_lagrangian`, Fig. 2.1) and SP-PPO-Lag's cost limit
-(``semdp.common.self_paced``).
+(``semdp.algos.sp_ppo_lag``).
 
 The thresholds are ``D = {base^(N - i) | i = 0..M}`` (Eq. 2.12, base 2 in the thesis) restricted
 to values above the target, loosest first, followed by the target itself. Two readings of how

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from semdp.algos.lagrangian import combined_advantage
-from semdp.common.advantages import gae
-from semdp.common.lagrange import Lagrange, PIDLagrange
+from semdp.algos.gae import gae
+from semdp.algos.lagrangian import Lagrange, combined_advantage
+from semdp.algos.pid_lagrange import PIDLagrange
+from semdp.algos.sp_ppo_lag import SelfPacedThresholds
 from semdp.common.normalization import RunningNormalizer
-from semdp.common.self_paced import SelfPacedThresholds
 from semdp.envs import make_vec_env, split_step_infos
 
 

@@ -16,8 +16,8 @@ import pytest
 import torch
 from omegaconf import DictConfig, open_dict
 
-from semdp.common.critic_regression import CriticTargets, regress_critics
-from semdp.common.critic_worker import CriticWorker
+from semdp.algos.fast.critic_helper import CriticWorker
+from semdp.algos.on_policy import CriticTargets, regress_critics
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import ValueCritic
 from semdp.common.vector_stepping import VectorStepper, success_flags
@@ -80,9 +80,9 @@ def test_success_flags_follow_gymnasiums_merged_final_info() -> None:
 
 @pytest.mark.parametrize("local", [1, 2])
 def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> None:
+    from semdp.algos.fast.rollout_helper import RolloutHelper
     from semdp.algos.ppo import PPO
     from semdp.algos.rollout import RolloutPart, noise_for, roll_part
-    from semdp.algos.rollout_helper import RolloutHelper
 
     cfg = {"id": "sims/SafetyCarGoal2-v0", "num_envs": 3, "kwargs": {"max_episode_steps": 25}}
     torch.manual_seed(0)
@@ -135,7 +135,7 @@ def test_critic_worker_regresses_bit_identically_and_can_be_cancelled() -> None:
                                 foreach=True)
     targets = CriticTargets(torch.randn(64, 5), torch.randn(64), torch.randn(64))
     perms = [torch.randperm(64) for _ in range(3)]
-    worker = CriticWorker(*copies, opt_copy)
+    worker = CriticWorker(*copies, opt_copy, regress_critics)
     try:
         for _ in range(2):  # the second round starts from trained Adam state
             worker.submit(*copies, opt_copy, targets, perms, 16, 1e-3, 0.5)
@@ -195,12 +195,12 @@ def test_async_resume_matches_the_uninterrupted_sync_run(
 def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from semdp.algos import on_policy
+    from semdp.algos.fast import helpers, rollout_helper
     from semdp.train import build_algorithm
 
-    monkeypatch.setattr(on_policy, "_cpus", lambda: 2)  # two usable cores, whatever the machine
-    monkeypatch.setattr(on_policy, "idle_core", lambda: False)  # a busy machine: probe both
-    monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 1.0)  # every env counts as cheap
+    monkeypatch.setattr(helpers, "_cpus", lambda: 2)  # two usable cores, whatever the machine
+    monkeypatch.setattr(helpers, "idle_core", lambda: False)  # a busy machine: probe both
+    monkeypatch.setattr(rollout_helper, "ASYNC_MIN_STEP_S", 1.0)  # every env counts as cheap
     cheap = build_algorithm(tiny_train("ppo", *AUTO))
     critics = []
     for _ in range(3):
@@ -209,7 +209,7 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
         critics.append(cheap.critics_in_helper)
     assert critics[:2] == [False, True]  # the first two updates measure both ways
     cheap.close_helpers()
-    monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 0.0)  # every env counts as slow
+    monkeypatch.setattr(rollout_helper, "ASYNC_MIN_STEP_S", 0.0)  # every env counts as slow
     run(tiny_train("ppo", *AUTO), tmp_path / "auto")
     run(tiny_train("ppo", *SYNC), tmp_path / "sync")
     assert _rows(tmp_path / "auto") == _rows(tmp_path / "sync")
@@ -221,12 +221,12 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     assert used[:2] == [(False, False), (True, True)]  # each way measured once, then the faster
     probing.close_helpers()
     # a core idle at the start: the helpers from the first epoch; the cheap envs come back
-    monkeypatch.setattr(on_policy, "idle_core", lambda: True)
+    monkeypatch.setattr(helpers, "idle_core", lambda: True)
     quiet = build_algorithm(tiny_train("ppo", *AUTO))
     quiet.train_epoch()
     assert quiet.envs_in_helper and quiet.critics_in_helper
     quiet.close_helpers()
-    monkeypatch.setattr(on_policy, "ASYNC_MIN_STEP_S", 1.0)
+    monkeypatch.setattr(rollout_helper, "ASYNC_MIN_STEP_S", 1.0)
     cheap_quiet = build_algorithm(tiny_train("ppo", *AUTO))
     for _ in range(2):
         cheap_quiet.train_epoch()

@@ -11,7 +11,7 @@ from torch import nn
 from torch.distributions import Normal, kl_divergence
 from torch.nn.utils import parameters_to_vector
 
-from semdp.common.gaussian_fisher import GaussianFisher
+from semdp.algos.fast.gaussian_fisher import GaussianFisher
 from semdp.common.networks import GaussianActor
 from semdp.train import build_algorithm
 

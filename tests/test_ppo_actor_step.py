@@ -10,9 +10,9 @@ import torch
 from omegaconf import DictConfig
 from torch.nn.utils import parameters_to_vector
 
+from semdp.algos.fast.ppo_actor_step import PPOActorStep
 from semdp.common.networks import GaussianActor
 from semdp.common.optim import FlatAdam, clip_grad_norm
-from semdp.common.ppo_actor_step import PPOActorStep
 from semdp.train import build_algorithm
 
 

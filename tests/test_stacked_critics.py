@@ -7,10 +7,11 @@ import copy
 import pytest
 import torch
 
-from semdp.common.critic_regression import CriticTargets, regress_critics
+from semdp.algos.fast.stacked_critics import StackedCritics
+from semdp.algos.fast.written import WrittenDerivatives
+from semdp.algos.on_policy import Autograd, CriticTargets, regress_critics
 from semdp.common.networks import ValueCritic
 from semdp.common.optim import FlatAdam
-from semdp.common.stacked_critics import StackedCritics
 
 
 def _setup(
@@ -43,7 +44,7 @@ def test_stacked_regression_matches_autograd(
     for autograd in (True, False):
         r, c, opt = _copies(critic_r, critic_c)
         losses = regress_critics(r, c, opt, targets, perms, 20, 1e-2, max_grad_norm,
-                                 autograd=autograd)
+                                 kernel=Autograd() if autograd else WrittenDerivatives())
         results.append((losses, [*r.parameters(), *c.parameters()], opt.state_dict()))
     (loss_a, params_a, state_a), (loss_s, params_s, state_s) = results
     assert loss_s == pytest.approx(loss_a, rel=1e-5)
@@ -71,7 +72,8 @@ def test_one_step_equals_a_hand_computed_adam_step_on_the_autograd_gradient() ->
     params = [*r.parameters(), *c.parameters()]
     grads = torch.autograd.grad(loss, params)
     r2, c2, opt = _copies(critic_r, critic_c)
-    regress_critics(r2, c2, opt, targets, [torch.arange(96)], 96, 0.1, None)
+    regress_critics(r2, c2, opt, targets, [torch.arange(96)], 96, 0.1, None,
+                    kernel=WrittenDerivatives())
     for p, p_new, g in zip(params, [*r2.parameters(), *c2.parameters()], grads, strict=True):
         expected = p.detach() - 1e-2 * torch.sign(g)
         torch.testing.assert_close(p_new, expected, rtol=0, atol=1e-6)
@@ -98,6 +100,6 @@ def test_a_stopped_regression_returns_none_and_keeps_the_steps_made() -> None:
     r, c, opt = _copies(critic_r, critic_c)
     calls = iter(range(100))
     out = regress_critics(r, c, opt, targets, [torch.arange(96)], 32, 0.0, None,
-                          stop=lambda: next(calls) == 2)
+                          stop=lambda: next(calls) == 2, kernel=WrittenDerivatives())
     assert out is None
     assert float(opt.state_dict()["state"][0]["step"]) == 2.0

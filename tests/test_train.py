@@ -16,7 +16,7 @@ from hydra.errors import ConfigCompositionException, MissingConfigException
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from semdp.algos.base import POLICY_NAME
-from semdp.algos.ppo_lag import PPOLag
+from semdp.algos.ppo import PPOLag
 from semdp.algos.sac import SAC
 from semdp.common.logger import COMMON_COLUMNS, TIMING_COLUMNS
 from semdp.evaluation.loading import load_trained

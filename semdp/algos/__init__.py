@@ -3,14 +3,14 @@ SP-PPO-Lag, TRPO-Lag, CPO, SAC.
 
 Hierarchy (at most two levels below the shared bases): ``OnPolicyAlgorithm -> PPO -> PPOLag ->
 SPPPOLag``, ``OnPolicyAlgorithm -> TRPO -> TRPOLag / CPO``, ``Algorithm -> SAC``. Everything else
-is composition: :mod:`semdp.common.lagrange`, :mod:`semdp.common.advantages`, ...
+is composition: :mod:`semdp.algos.lagrangian`, :mod:`semdp.algos.gae`, the speed-ups of
+:mod:`semdp.algos.fast` behind their seams, ...
 """
 
 from semdp.algos.base import Algorithm
 from semdp.algos.cpo import CPO
 from semdp.algos.on_policy import OnPolicyAlgorithm
-from semdp.algos.ppo import PPO
-from semdp.algos.ppo_lag import PPOLag
+from semdp.algos.ppo import PPO, PPOLag
 from semdp.algos.sac import SAC
 from semdp.algos.sp_ppo_lag import SPPPOLag
 from semdp.algos.trpo import TRPO

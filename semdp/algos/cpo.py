@@ -43,8 +43,8 @@ import torch
 from torch.distributions import Normal
 from torch.nn.utils import parameters_to_vector
 
+from semdp.algos.gae import RolloutBatch
 from semdp.algos.trpo import TRPO, conjugate_gradient
-from semdp.common.buffers import RolloutBatch
 
 logger = logging.getLogger(__name__)
 

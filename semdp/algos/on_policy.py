@@ -1,92 +1,148 @@
-"""On-policy rollouts with a Gaussian actor, a reward critic and a cost critic (PPO and TRPO
-families; semdp/README.md, "Algorithms and recorded choices").
+"""The on-policy base of PPO, TRPO and their constrained variants (thesis Eqs. 2.4-2.7): a
+Gaussian actor, a reward critic and a cost critic.
 
-Two optional helper processes use a second core without changing a single number (same seed,
-same ``progress.csv``; semdp/README.md, "Throughput"):
+An epoch, in the order the subclasses' ``train_epoch`` runs it:
 
-* ``vectorization="async"``: a forked helper rolls out 3/5 of the training sub-envs for the
-  whole epoch (:class:`~semdp.algos.rollout_helper.RolloutHelper`) while the trainer rolls out
-  the others; the critics value the merged rollout afterwards (:mod:`semdp.algos.rollout`);
-* ``parallel_critics=True``: the critics regress in a forked helper
-  (:class:`~semdp.common.critic_worker.CriticWorker`) while the actor updates; the helper gets
-  the permutations the trainer's generator would have drawn for them.
+1. **rollout** -- :meth:`OnPolicyAlgorithm.collect_rollout`: the sampling noise of the epoch is
+   drawn, the collector acts and steps the envs (:mod:`semdp.algos.rollout`), then
+   :meth:`~OnPolicyAlgorithm.value_rollout` values every step with the critics and bootstraps
+   time-outs with V(true final observation);
+2. (the multiplier step of the constrained variants, :mod:`semdp.algos.lagrangian`);
+3. **GAE** -- :meth:`~OnPolicyAlgorithm.compute_batch` (:mod:`semdp.algos.gae`);
+4. **actor** -- the subclass (PPO's clipped passes, TRPO's natural-gradient step);
+5. **critics** -- :meth:`~OnPolicyAlgorithm.update_critics`: minibatch regression of V_r and V_c
+   on their GAE returns.
 
-``"auto"`` (the default of both) uses a helper where the platform can fork and two CPUs are
-available, and only while it is faster: the first rollout and update run in the trainer, the
-second with the helpers, then :class:`~semdp.common.option_probe.FasterOption` keeps the faster
-way and measures the other again when the load changes (on a machine whose cores other jobs
-keep busy, the helpers only add pipe traffic). Envs whose vector step took less than
-:data:`ASYNC_MIN_STEP_S` in the first rollout stay in the trainer (the pipe costs more), and so
-do sub-envs with a wrapper of their own (its state, e.g. the SEMDP wrapper's timings, is read
-from the trainer's copy). Switching changes no number.
+Two seams chosen by constructor arguments (``conf/algo/*.yaml``) swap in the speed-ups of
+:mod:`semdp.algos.fast` without changing the plain path: ``gradients`` picks the update kernel
+(:class:`Autograd` here, or the written-out derivatives) and ``vectorization`` /
+``parallel_critics`` the rollout collector and the critic runner (this process, or helper
+processes); ``"sync"`` / ``false`` / ``"autograd"`` is the plain path throughout.
 """
 
 from __future__ import annotations
 
-import logging
-import os
+import functools
 import time
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 import torch
+from torch import nn
 
 from semdp.algos.base import Algorithm
-from semdp.algos.rollout import RolloutPart, noise_for, roll_part
-from semdp.algos.rollout_helper import RolloutHelper
-from semdp.common.buffers import RolloutBatch, RolloutBuffer
-from semdp.common.critic_regression import CriticTargets, regress_critics
-from semdp.common.critic_worker import CriticWorker
+from semdp.algos.fast.helpers import with_helpers
+from semdp.algos.fast.written import WrittenDerivatives
+from semdp.algos.gae import RolloutBatch, RolloutBuffer
+from semdp.algos.rollout import LocalCollector, RolloutPart, noise_for
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
-from semdp.common.optim import FlatAdam
-from semdp.common.option_probe import FasterOption, idle_core
-from semdp.common.vector_stepping import VectorStepper, stepper_for
-from solvers.workers import fork_available
-
-logger = logging.getLogger(__name__)
+from semdp.common.optim import FlatAdam, clip_grad_norm
 
 VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
 #: ``gradients=``: derivatives written out where the networks allow it, or autograd throughout.
 GRADIENTS: tuple[str, ...] = ("written", "autograd")
-#: ``vectorization="auto"``: seconds per vector step of the envs (first rollout, in this
-#: process) from which they move to the helper.
-ASYNC_MIN_STEP_S = 2e-4
-#: Fraction of the sub-envs the trainer rolls out itself with ``async`` (it also values the
-#: merged rollout, so it takes a little less than half).
-TRAINER_SHARE: tuple[int, int] = (2, 5)
-#: Modules whose wrappers keep no state the trainer reads (``auto`` may fork the envs).
-_PLAIN_WRAPPER_MODULES: tuple[str, ...] = ("gymnasium.", "semdp.envs")
 
 
-def _cpus() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - platforms without sched_getaffinity
-        return os.cpu_count() or 1
+class Autograd:
+    """The plain update kernel: no written-out derivatives, so every caller takes its own
+    autograd path (the interface of :class:`~semdp.algos.fast.written.WrittenDerivatives`)."""
+
+    name = "autograd"
+
+    def critics(self, critic_r: nn.Module, critic_c: nn.Module, optimizer: Any) -> None:
+        """No stacked regression."""
+
+    def ppo_step(self, actor: nn.Module, optimizer: Any) -> None:
+        """No written PPO step."""
+
+    def fisher(self, actor: nn.Module, obs: torch.Tensor, damping: float) -> None:
+        """No written Fisher-vector product."""
 
 
-def _plain_sub_envs(envs: gym.vector.VectorEnv) -> bool:
-    """A plain ``SyncVectorEnv`` (not a subclass with a ``step`` of its own) whose sub-envs'
-    wrappers are all gymnasium's or the cost checks of :mod:`semdp.envs`."""
-    if type(envs) is not gym.vector.SyncVectorEnv:
-        return False
-    for env in envs.envs:
-        while isinstance(env, gym.Wrapper):
-            if not type(env).__module__.startswith(_PLAIN_WRAPPER_MODULES):
-                return False
-            env = env.env
-    return True
+class CriticTargets(NamedTuple):
+    """What the critics regress on: normalised observations and both GAE returns."""
+
+    obs: torch.Tensor
+    ret_r: torch.Tensor
+    ret_c: torch.Tensor
 
 
-@dataclass(frozen=True)
-class _CriticJob:
-    """A critic regression running in the helper, on the permutations after ``skip`` draws."""
+def regress_critics(
+    critic_r: nn.Module,
+    critic_c: nn.Module,
+    optimizer: torch.optim.Optimizer,
+    targets: Sequence[torch.Tensor],
+    perms: Sequence[torch.Tensor],
+    minibatch: int,
+    l2: float,
+    max_grad_norm: float | None,
+    stop: Callable[[], bool] | None = None,
+    kernel: Any = None,
+) -> tuple[float, float] | None:
+    """Minibatch passes of V_r and V_c on their returns; the last minibatch's losses.
 
-    skip: int
+    Per minibatch the squared errors of both critics plus ``l2`` times their summed squared
+    weights (OmniSafe's ``critic_norm_coef``), the gradient norm of both clipped together, one
+    optimiser step; one permutation per pass (``perms``).
+
+    Args:
+        critic_r, critic_c, optimizer: the critics (trained in place) and their optimiser.
+        targets: :class:`CriticTargets` (or the tuple ``(obs, ret_r, ret_c)``).
+        perms: one permutation of the batch indices per pass.
+        minibatch: minibatch size.
+        l2: coefficient of the summed squared weights.
+        max_grad_norm: joint gradient-norm clip (``None`` = off).
+        stop: polled before each minibatch; ``True`` abandons the regression (returns None).
+        kernel: the update kernel (``None``: :class:`Autograd`; the written one regresses both
+            as one stacked network).
+    """
+    stacked = None if kernel is None else kernel.critics(critic_r, critic_c, optimizer)
+    if stacked is not None:
+        return stacked.regress(*targets, perms, minibatch, l2, max_grad_norm, stop)
+    weights = [p for net in (critic_r, critic_c)
+               for name, p in net.named_parameters() if name.endswith("weight")]
+    params = [*critic_r.parameters(), *critic_c.parameters()]
+    n = targets[0].shape[0]
+    loss_v = loss_vc = torch.tensor(0.0)
+    for perm in perms:
+        all_obs, all_ret_r, all_ret_c = (x[perm] for x in targets)  # one gather per pass
+        for start in range(0, n, minibatch):
+            if stop is not None and stop():
+                return None
+            idx = slice(start, start + minibatch)
+            obs = all_obs[idx]
+            loss_v = ((critic_r(obs) - all_ret_r[idx]) ** 2).mean()
+            loss_vc = ((critic_c(obs) - all_ret_c[idx]) ** 2).mean()
+            weight_norm = sum((p**2).sum() for p in weights)
+            optimizer.zero_grad()
+            (loss_v + loss_vc + l2 * weight_norm).backward()
+            if max_grad_norm is not None:
+                clip_grad_norm(params, max_grad_norm)
+            optimizer.step()
+    return loss_v.item(), loss_vc.item()
+
+
+class LocalCritics:
+    """The plain critic runner: the critics regress in this process after the actor update."""
+
+    in_helper = False
+
+    def __init__(self, update: Callable[[RolloutBatch], dict[str, float]]) -> None:
+        self.update = update
+
+    def start(self, batch: RolloutBatch, skip: int) -> None:
+        """Nothing runs during the actor update."""
+
+    def finish(self, batch: RolloutBatch, job: None, drawn: int) -> dict[str, float]:
+        """Regress the critics now."""
+        return self.update(batch)
+
+    def stop(self) -> None:
+        """No helper."""
 
 
 class OnPolicyAlgorithm(Algorithm):
@@ -109,20 +165,15 @@ class OnPolicyAlgorithm(Algorithm):
         max_grad_norm: gradient-norm clip (``None`` = off).
         obs_normalize: running observation normalisation on/off.
         obs_clip: clip of normalised observations.
-        vectorization: ``"sync"`` (training envs step in this process), ``"async"`` (in a
-            forked helper) or ``"auto"`` (see the module docstring).
-        parallel_critics: regress the critics in a forked helper during the actor update
+        vectorization: ``"sync"`` (the envs step here), ``"async"`` (3/5 of them in a helper
+            process) or ``"auto"`` (:mod:`semdp.algos.fast.helpers`).
+        parallel_critics: regress the critics in a helper process during the actor update
             (``True``/``False``/``"auto"``).
-        gradients: ``"written"`` (the default MLPs' derivatives written out: both critics'
-            regression as one stacked network, :mod:`semdp.common.stacked_critics`; PPO's
-            clipped-surrogate step, :mod:`semdp.common.ppo_actor_step`; TRPO's and CPO's
-            Fisher-vector product, :mod:`semdp.common.gaussian_fisher`) or ``"autograd"``
-            (the same quantities through autograd, ~2-3x slower; the numbers differ in the
-            last bits, the learning curves within noise).
+        gradients: the update kernel, ``"written"`` (:mod:`semdp.algos.fast.written`) or
+            ``"autograd"``.
     """
 
-    #: ``rollout_helper``/``critic_helper``: 1 where the epoch used that helper (the choice of
-    #: ``auto`` recorded).
+    #: ``rollout_helper``/``critic_helper``: 1 where the epoch used that helper.
     base_columns: tuple[str, ...] = ("loss_v", "loss_vc", "entropy", "kl", "rollout_helper",
                                      "critic_helper")
 
@@ -153,8 +204,6 @@ class OnPolicyAlgorithm(Algorithm):
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
         if gradients not in GRADIENTS:
             raise ValueError(f"gradients must be one of {list(GRADIENTS)}, got {gradients!r}")
-        #: ``gradients="autograd"``: no written-out derivatives.
-        self.autograd_only = gradients == "autograd"
         for name, v in (("critic_iters", critic_iters), ("critic_minibatches", critic_minibatches)):
             if v < 1:
                 raise ValueError(f"{name} must be >= 1, got {v}")
@@ -179,25 +228,25 @@ class OnPolicyAlgorithm(Algorithm):
         self.buffer = RolloutBuffer(self.n_steps, self.num_envs, self.obs_dim, self.act_dim)
         self.last_ep_cost: float | None = None
         self.last_ep_length: float | None = None
-        helpers = fork_available() and _cpus() >= 2
-        if "async" in (vectorization, parallel_critics) or parallel_critics is True:
-            if not fork_available():
-                raise ValueError("helper processes need the 'fork' start method")
-        if vectorization == "async" and type(envs) is not gym.vector.SyncVectorEnv:
-            raise ValueError(f"vectorization='async' steps the sub-envs of a gymnasium "
-                             f"SyncVectorEnv, got {type(envs).__name__}")
-        self.vectorization, self.parallel_critics = vectorization, parallel_critics
-        #: Whether the envs step with a helper (per rollout) and the critics regress in one
-        #: (per update): fixed by ``"sync"``/``"async"``/``True``/``False``, probed by ``auto``.
-        # with a core idle now, the helpers are used from the first epoch (option_probe)
-        first = helpers and "auto" in (vectorization, parallel_critics) and idle_core()
-        self._env_choice = FasterOption(helpers and _plain_sub_envs(envs), first=first)
-        self._critic_choice = FasterOption(helpers, first=first)
-        self.envs_in_helper = vectorization == "async"
-        self.critics_in_helper = parallel_critics is True
-        self._update_start = 0.0
-        self._rollout_helper: RolloutHelper | None = None
-        self._critic_worker: CriticWorker | None = None
+        # the seams (semdp.algos.fast): update kernel, rollout collector, critic runner
+        self.kernel: Any = WrittenDerivatives() if gradients == "written" else Autograd()
+        self.regress = functools.partial(regress_critics, kernel=self.kernel)
+        policy = (self.actor, self.normalizer, self.to_env_action)
+        self.collector: Any = LocalCollector(*policy)
+        self.critics: Any = LocalCritics(self.update_critics)
+        if vectorization != "sync" or parallel_critics is not False:
+            self.collector, self.critics = with_helpers(
+                vectorization, parallel_critics, envs, policy, self, self.regress, self.critics)
+
+    @property
+    def envs_in_helper(self) -> bool:
+        """Whether the envs step with a helper this epoch (the choice of ``auto``)."""
+        return bool(self.collector.in_helper)
+
+    @property
+    def critics_in_helper(self) -> bool:
+        """Whether the critics regress in a helper in this update (the choice of ``auto``)."""
+        return bool(self.critics.in_helper)
 
     # ----------------------------------------------------------------- acting
     def _tensor(self, obs: npt.ArrayLike) -> torch.Tensor:
@@ -210,59 +259,16 @@ class OnPolicyAlgorithm(Algorithm):
             a = self.actor.mean(x) if deterministic else self.actor.distribution(x).sample()
         return self.to_env_action(a.numpy())
 
-    def _helper_for_rollout(self) -> RolloutHelper | None:
-        """The rollout helper of this epoch (``None`` when the trainer rolls out every env)."""
-        if self.vectorization == "auto":
-            self.envs_in_helper = self._env_choice.choose()
-        local = max(1, (self.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1])
-        if not self.envs_in_helper or local >= self.num_envs:
-            self._stop_rollout_helper(fetch=True)
-            return None
-        if self._rollout_helper is None:
-            self._rollout_helper = RolloutHelper(
-                self.envs, range(local, self.num_envs), self.actor, self.normalizer,
-                self.to_env_action)
-        return self._rollout_helper
-
+    # ----------------------------------------------------------------- 1. rollout
     def collect_rollout(self) -> dict[str, float]:
-        """Fill the rollout buffer with ``n_steps`` vector steps; return episode statistics.
-
-        The sampling noise of the epoch is drawn first; the sub-envs are rolled out (the last
-        ones by the helper, if it is used: :mod:`semdp.algos.rollout`), then the critics value
-        every step and time-outs are bootstrapped with V(true final observation), step by step
-        as the rollout went.
-        """
-        perf = time.perf_counter
-        seconds = self.timer.seconds
-        rollout_start = perf()
-        helper = self._helper_for_rollout()
+        """Fill the rollout buffer with ``n_steps`` vector steps; return episode statistics."""
         noise = noise_for(self.n_steps, self.num_envs, self.act_dim)
-        local = helper.rows.start if helper is not None else self.num_envs
-        if helper is not None:
-            helper.start(self.actor, self.normalizer, noise[:, local:], self._obs[local:])
-            stepper = VectorStepper(self.envs, range(local))
-        else:
-            stepper = stepper_for(self.envs)
-        part = roll_part(self.actor, self.normalizer, self.to_env_action, stepper,
-                         range(local), self.num_envs, noise[:, :local], self._obs[:local])
-        seconds["policy"] += part.policy_s
-        seconds["simulation"] += part.simulation_s
-        # this process's vector step, scaled to all the sub-envs
-        step_s = part.simulation_s * self.num_envs / max(local, 1) / self.n_steps
-        if helper is not None:
-            wait = perf()
-            remote = helper.result()
-            seconds["simulation"] += perf() - wait
-            seconds["simulation_worker"] += remote.simulation_s
-            part = RolloutPart.concatenate(part, remote)
-        if step_s < ASYNC_MIN_STEP_S:  # cheaper than the pipe to a helper: the envs stay here
-            self._env_choice.disallow()
-        stats = self._value_rollout(part)
-        stats["rollout_helper"] = float(helper is not None)
-        self._env_choice.record(self.envs_in_helper, perf() - rollout_start)
+        part = self.collector.collect(self.envs, self._obs, noise, self.timer.seconds)
+        stats = self.value_rollout(part)
+        stats["rollout_helper"] = float(self.collector.used_helper)
         return stats
 
-    def _value_rollout(self, part: RolloutPart) -> dict[str, float]:
+    def value_rollout(self, part: RolloutPart) -> dict[str, float]:
         """Store ``part`` in the buffer, value it with the critics, track the episodes."""
         perf = time.perf_counter
         seconds = self.timer.seconds
@@ -310,6 +316,7 @@ class OnPolicyAlgorithm(Algorithm):
         seconds["storage"] += perf() - start - valuing
         return stats
 
+    # ----------------------------------------------------------------- 3. GAE
     def compute_batch(self) -> RolloutBatch:
         """GAE for reward and cost over the filled buffer."""
         with self.timer.phase("storage"):
@@ -326,119 +333,36 @@ class OnPolicyAlgorithm(Algorithm):
             return self.last_ep_cost
         return float(self.buffer.costs.mean() * self.n_steps)
 
-    # ----------------------------------------------------------------- critics
-    def _critic_minibatch(self, n: int) -> int:
+    # ----------------------------------------------------------------- 5. critics
+    def critic_minibatch(self, n: int) -> int:
+        """Minibatch size of the critic regression on ``n`` samples."""
         return max(1, n // self.critic_minibatches)
 
     def update_critics(self, batch: RolloutBatch) -> dict[str, float]:
-        """Minibatch regression of V_r and V_c on their GAE returns (+ L2 on weights), here.
-
-        One permutation per pass from torch's global generator.
-        """
+        """Regress V_r and V_c on their GAE returns here, one permutation per pass from
+        torch's global generator."""
         n = batch.obs.shape[0]
         perms = [torch.randperm(n) for _ in range(self.critic_iters)]
-        losses = regress_critics(
-            self.critic_r, self.critic_c, self.critic_optimizer,
-            CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
-            self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
-            autograd=self.autograd_only,
-        )
+        losses = self.regress(self.critic_r, self.critic_c, self.critic_optimizer,
+                              CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
+                              self.critic_minibatch(n), self.critic_l2, self.max_grad_norm)
         assert losses is not None  # no stop condition here
         return {"loss_v": losses[0], "loss_vc": losses[1], "critic_helper": 0.0}
 
-    def start_critic_update(self, batch: RolloutBatch, skip: int) -> _CriticJob | None:
-        """Start the critic regression in the helper, if it is used for this update (else
-        ``None``); the update's time is measured until :meth:`finish_critic_update`.
-
-        The helper gets the permutations the global generator will draw after ``skip`` more
-        draws of ``randperm(batch size)`` (the actor passes that come first); the generator
-        itself is not advanced here.
-        """
-        self._update_start = time.perf_counter()
-        if self.parallel_critics == "auto":
-            self.critics_in_helper = self._critic_choice.choose()
-        if not self.critics_in_helper:
-            return None
-        n = batch.obs.shape[0]
-        generator = torch.Generator()
-        generator.set_state(torch.get_rng_state())
-        for _ in range(skip):
-            torch.randperm(n, generator=generator)
-        perms = [torch.randperm(n, generator=generator) for _ in range(self.critic_iters)]
-        if self._critic_worker is None:
-            self._critic_worker = CriticWorker(self.critic_r, self.critic_c,
-                                               self.critic_optimizer)
-        self._critic_worker.submit(
-            self.critic_r, self.critic_c, self.critic_optimizer,
-            CriticTargets(batch.obs, batch.ret_r, batch.ret_c), perms,
-            self._critic_minibatch(n), self.critic_l2, self.max_grad_norm,
-            autograd=self.autograd_only,
-        )
-        return _CriticJob(skip)
-
-    def finish_critic_update(
-        self, batch: RolloutBatch, job: _CriticJob | None, drawn: int
-    ) -> dict[str, float]:
-        """The critic update after ``drawn`` permutations were drawn since the job started.
-
-        The helper's result is used when it got the right permutations (then the global
-        generator draws them too, as a regression here would have); otherwise the job is
-        cancelled and the critics regress here.
-        """
-        if job is not None and self._critic_worker is not None and job.skip == drawn:
-            loss_v, loss_vc = self._critic_worker.result(
-                self.critic_r, self.critic_c, self.critic_optimizer)
-            n = batch.obs.shape[0]
-            for _ in range(self.critic_iters):
-                torch.randperm(n)
-            stats = {"loss_v": loss_v, "loss_vc": loss_vc}
-        else:
-            if job is not None and self._critic_worker is not None:
-                self._critic_worker.cancel()
-            stats = self.update_critics(batch)
-        self._critic_choice.record(job is not None, time.perf_counter() - self._update_start)
-        stats["critic_helper"] = float(job is not None and job.skip == drawn)
-        return stats
-
     # ----------------------------------------------------------------- helpers and state
     def env_snapshot(self) -> Any:
-        """The training env for a checkpoint; with the rollout helper, its live sub-envs.
-
-        ``None`` (with a warning, once) when the helper cannot pickle them: a resume then
-        restarts the episodes in progress, as for an unpicklable env in this process.
-        """
-        if self._rollout_helper is None:
-            return self.envs
-        try:
-            return self._rollout_helper.snapshot()
-        except RuntimeError as exc:
-            if not self._warned_unpicklable:
-                logger.warning("the rollout helper cannot pickle the envs (%s): checkpoints "
-                               "omit the env state; a resume will not be bit-identical", exc)
-                self._warned_unpicklable = True
-            return None
-
-    def _stop_rollout_helper(self, fetch: bool) -> None:
-        helper, self._rollout_helper = self._rollout_helper, None
-        if helper is not None:
-            if fetch:
-                try:
-                    helper.gather()  # the helper's sub-envs back into self.envs
-                except RuntimeError:  # a rollout was in flight (an error interrupted it)
-                    pass
-            helper.close()
+        """The training env for a checkpoint (with a rollout helper, its live sub-envs)."""
+        return self.collector.snapshot(self.envs)
 
     def replace_envs(self, envs: gym.vector.VectorEnv) -> None:
         """Continue with ``envs``; a helper rolling out the old ones is stopped."""
-        self._stop_rollout_helper(fetch=False)
+        self.collector.stop(fetch=False)
         super().replace_envs(envs)
 
     def close_helpers(self) -> None:
         """Stop the helpers; the rollout helper's live envs become :attr:`envs` again."""
-        self._stop_rollout_helper(fetch=True)
-        if self._critic_worker is not None:
-            self._critic_worker.close()
-            self._critic_worker = None
+        self.collector.stop(fetch=True)
+        self.critics.stop()
 
     def policy_state(self) -> dict[str, Any]:
         """The actor and the observation normaliser's statistics."""
@@ -464,7 +388,7 @@ class OnPolicyAlgorithm(Algorithm):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` (a helper rolling out the previous envs is stopped)."""
-        self._stop_rollout_helper(fetch=False)
+        self.collector.stop(fetch=False)
         super().load_state_dict(state)
         self.actor.load_state_dict(state["actor"])
         self.critic_r.load_state_dict(state["critic_r"])
@@ -472,4 +396,3 @@ class OnPolicyAlgorithm(Algorithm):
         self.critic_optimizer.load_state_dict(state["critic_optimizer"])
         self.normalizer.load_state_dict(state["normalizer"])
         self.last_ep_cost, self.last_ep_length = state["last_ep"]
-

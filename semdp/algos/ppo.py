@@ -1,11 +1,12 @@
-"""Proximal Policy Optimisation with clipped surrogate (Schulman et al. 2017; thesis Eq. 2.6).
+"""PPO and PPO-Lagrangian: clipped surrogate (Schulman et al. 2017; thesis Eq. 2.6) and the
+Lagrange multiplier on the episode cost (Ray, Achiam & Amodei 2019; thesis Eqs. 2.4-2.7).
 
 Update scheme (recorded choice, semdp/README.md "Algorithms and recorded choices"): CleanRL-style
 ``update_iters`` passes x ``num_minibatches`` minibatches, gradient-norm clip 0.5, actor learning
 rate linearly decayed to 0 over the run, early stop of the passes when the approximate KL on the
 whole batch exceeds ``target_kl`` (OmniSafe's per-pass check). The cost critic is trained as well
 so that PPO logs the same columns as its constrained variants. The minibatch step of the
-Gaussian actor has its derivatives written out (:mod:`semdp.common.ppo_actor_step`;
+Gaussian actor has its derivatives written out (:mod:`semdp.algos.fast.ppo_actor_step`;
 ``gradients="autograd"`` runs it through autograd).
 
 With ``parallel_critics`` the critics regress in a helper process during the actor passes. Their
@@ -22,10 +23,10 @@ from typing import Any
 import gymnasium as gym
 import torch
 
+from semdp.algos.gae import RolloutBatch
+from semdp.algos.lagrangian import LagrangianMixin
 from semdp.algos.on_policy import OnPolicyAlgorithm
-from semdp.common.buffers import RolloutBatch
 from semdp.common.optim import FlatAdam, clip_grad_norm
-from semdp.common.ppo_actor_step import PPOActorStep
 
 
 class PPO(OnPolicyAlgorithm):
@@ -103,7 +104,7 @@ class PPO(OnPolicyAlgorithm):
 
     def _update(self, batch: RolloutBatch) -> dict[str, float]:
         """Clipped-surrogate passes (critics meanwhile in the helper, if any), then critics."""
-        critic_job = self.start_critic_update(batch, skip=self.update_iters)
+        critic_job = self.critics.start(batch, skip=self.update_iters)  # None: plain path
         adv = self.policy_advantage(batch)
         if self.lr_decay:
             frac = 1.0 - self.epoch / max(self.total_epochs, 1)
@@ -112,8 +113,7 @@ class PPO(OnPolicyAlgorithm):
         n = batch.obs.shape[0]
         mb = max(1, n // self.num_minibatches)
         actor_params = list(self.actor.parameters())
-        written = None if self.autograd_only else PPOActorStep.build(self.actor,
-                                                                     self.actor_optimizer)
+        written = self.kernel.ppo_step(self.actor, self.actor_optimizer)  # None: autograd
         loss_pi, entropy, kl, passes = torch.tensor(0.0), torch.tensor(0.0), 0.0, 0
         for _ in range(self.update_iters):
             perm = torch.randperm(n)  # one gather per pass; minibatches are slices of it
@@ -144,7 +144,7 @@ class PPO(OnPolicyAlgorithm):
                 kl = float(((log_ratio.exp() - 1) - log_ratio).mean())
             if self.target_kl is not None and kl > self.target_kl:
                 break
-        critic_stats = self.finish_critic_update(batch, critic_job, drawn=passes)
+        critic_stats = self.critics.finish(batch, critic_job, drawn=passes)
         return {
             **critic_stats, "loss_pi": loss_pi.item(), "entropy": entropy.item(), "kl": kl,
             "update_passes": passes,
@@ -158,3 +158,15 @@ class PPO(OnPolicyAlgorithm):
         """Restore :meth:`state_dict`."""
         super().load_state_dict(state)
         self.actor_optimizer.load_state_dict(state["actor_optimizer"])
+
+
+class PPOLag(LagrangianMixin, PPO):
+    """PPO with a Lagrange multiplier on the episode-cost constraint: per epoch the multiplier
+    steps first, from the mean cost of the episodes that finished in this rollout (OmniSafe
+    order), then the actor ascends ``(A_r - lambda A_c) / (1 + lambda)`` with the PPO clip.
+
+    Args:
+        lagrange: a :class:`~semdp.algos.lagrangian.Lagrange` or
+            :class:`~semdp.algos.pid_lagrange.PIDLagrange` (its ``cost_limit`` is the run's).
+        **kwargs: see :class:`PPO`.
+    """

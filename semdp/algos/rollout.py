@@ -1,18 +1,14 @@
-"""One epoch's rollout of some of the training sub-envs, acting as the whole batch would.
+"""One epoch's rollout: act, step, record (the first stage of PPO/TRPO, thesis Eqs. 2.4-2.7).
 
-The on-policy rollout (semdp/README.md, "Algorithms and recorded choices") can be split
-between the trainer and a helper process (``vectorization="async"``), each stepping its own
-sub-envs for the whole epoch without waiting for the other (semdp/README.md, "Throughput"). For
-the numbers to stay those of one process acting on all sub-envs:
-
-* the Gaussian noise of every step is drawn beforehand, by the trainer, exactly as the
-  sampling would draw it (``torch.randn(n, act_dim)`` per step is what ``Normal.sample``
-  draws), and a sample is ``noise * std + mean`` as in ``torch.normal``;
-* each process evaluates the actor on the full ``n``-row batch with its own rows in their
-  places (the others zero): a row of a matrix product depends on that row only, but the kernel
-  chosen depends on the batch shape, so the shape and the row positions are kept;
-* the critics, the time-out bootstraps and the episode bookkeeping run afterwards in the
-  trainer on the merged records, in the original per-step batches and order.
+:class:`LocalCollector` is the plain rollout collector: this process steps every sub-env
+(:mod:`semdp.algos.fast.rollout_helper` is the one that lends part of them to a helper process).
+The sampling noise of the epoch is drawn beforehand (``torch.randn(n, act_dim)`` per step is
+what ``Normal.sample`` draws; a sample is ``noise * std + mean`` as in ``torch.normal``), so a
+rollout split between processes acts exactly as one process would: each evaluates the actor on
+the full ``n``-row batch with its own rows in their places (the others zero: a row of a matrix
+product depends on that row only, but the kernel chosen depends on the batch shape), and the
+critics, the time-out bootstraps and the episode bookkeeping run afterwards on the merged records
+(:meth:`semdp.algos.on_policy.OnPolicyAlgorithm.value_rollout`).
 """
 
 from __future__ import annotations
@@ -28,6 +24,7 @@ from torch.distributions import Normal
 
 from semdp.common.networks import GaussianActor
 from semdp.common.normalization import RunningNormalizer
+from semdp.common.vector_stepping import stepper_for
 
 
 @dataclass
@@ -147,3 +144,41 @@ def roll_part(
             part.simulation_s += t2 - t1
     part.last_obs = obs
     return part
+
+
+class LocalCollector:
+    """The plain rollout collector: every sub-env steps in this process.
+
+    Args:
+        actor, normalizer, to_env_action: the algorithm's policy (read at every rollout).
+    """
+
+    #: Whether the latest rollout used a helper process (never, here).
+    used_helper = False
+    #: Whether the envs are meant to step in a helper (``vectorization="async"``/``auto``).
+    in_helper = False
+
+    def __init__(
+        self,
+        actor: GaussianActor,
+        normalizer: RunningNormalizer,
+        to_env_action: Callable[[Any], np.ndarray],
+    ) -> None:
+        self.actor, self.normalizer, self.to_env_action = actor, normalizer, to_env_action
+
+    def collect(
+        self, envs: Any, obs: np.ndarray, noise: torch.Tensor, seconds: dict[str, float]
+    ) -> RolloutPart:
+        """Roll out all sub-envs of ``envs`` from ``obs`` with ``noise`` (one row per step)."""
+        part = roll_part(self.actor, self.normalizer, self.to_env_action, stepper_for(envs),
+                         range(envs.num_envs), envs.num_envs, noise, obs)
+        seconds["policy"] += part.policy_s
+        seconds["simulation"] += part.simulation_s
+        return part
+
+    def snapshot(self, envs: Any) -> Any:
+        """The training envs for a checkpoint (all of them are here)."""
+        return envs
+
+    def stop(self, fetch: bool) -> None:
+        """Nothing to stop (no helper)."""

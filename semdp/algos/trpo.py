@@ -3,7 +3,7 @@ TRPO-Lag and CPO.
 
 One natural-gradient actor step per epoch on the whole batch: ``x = F^-1 g`` by conjugate
 gradients on Fisher-vector products (Hessian of the mean KL, damping ``cg_damping``; written out
-for the Gaussian actor, :mod:`semdp.common.gaussian_fisher`), full step
+for the Gaussian actor, :mod:`semdp.algos.fast.gaussian_fisher`), full step
 ``sqrt(2 delta / x'Fx) x``, backtracking line search (factor ``backtrack_coef``, at most
 ``backtrack_iters`` tries) accepting the first step with KL <= ``target_kl`` and an improved
 surrogate, else keeping the old parameters. Critics: ``critic_iters`` minibatch passes at
@@ -22,9 +22,8 @@ import torch
 from torch.distributions import Normal, kl_divergence
 from torch.nn.utils import parameters_to_vector, vector_to_parameters
 
+from semdp.algos.gae import RolloutBatch
 from semdp.algos.on_policy import OnPolicyAlgorithm
-from semdp.common.buffers import RolloutBatch
-from semdp.common.gaussian_fisher import GaussianFisher
 
 
 def conjugate_gradient(
@@ -129,10 +128,9 @@ class TRPO(OnPolicyAlgorithm):
     ) -> Callable[[torch.Tensor], torch.Tensor]:
         """``v -> (F + damping I) v`` with F the Hessian of the mean KL at the old policy
         (the current parameters: called before the step)."""
-        if not self.autograd_only:
-            fisher = GaussianFisher.build(self.actor, batch.obs, self.cg_damping)
-            if fisher is not None:
-                return fisher
+        fisher = self.kernel.fisher(self.actor, batch.obs, self.cg_damping)
+        if fisher is not None:  # the written-out product (gradients="written")
+            return fisher
         grad_kl = self.flat_grad(self.mean_kl(batch, old), create_graph=True)
 
         def fvp(v: torch.Tensor) -> torch.Tensor:
@@ -190,9 +188,9 @@ class TRPO(OnPolicyAlgorithm):
         self.before_update(stats)
         batch = self.compute_batch()
         with self.timer.phase("update"):
-            critic_job = self.start_critic_update(batch, skip=0)
+            critic_job = self.critics.start(batch, skip=0)
             actor_stats = self.update_actor(batch)
-            critic_stats = self.finish_critic_update(batch, critic_job, drawn=0)
+            critic_stats = self.critics.finish(batch, critic_job, drawn=0)
             with torch.no_grad():
                 entropy = float(self.actor.distribution(batch.obs[:1]).entropy().sum())
         self.epoch += 1

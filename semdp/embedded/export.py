@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from semdp.embedded.follower_weights import export_follower
+from semdp.run_config import load_run_config
 
 
 def actor_mean_state(actor_state: dict[str, Any], act_dim: int) -> tuple[dict[str, Any], list]:
@@ -49,12 +50,11 @@ def export_run(run_dir: str | Path, out: str | Path) -> Path:
     """Write the follower weights of a finished follower-training run to ``out``."""
     import torch
     from hydra.utils import instantiate
-    from omegaconf import OmegaConf
 
     import semdp.envs  # noqa: F401  (registers the sims ids)
 
     run_dir = Path(run_dir)
-    cfg = OmegaConf.load(run_dir / "config.yaml")
+    cfg = load_run_config(run_dir)
     ckpt = torch.load(run_dir / "checkpoints" / "last.pt", map_location="cpu", weights_only=False)
     import gymnasium as gym
 

@@ -41,6 +41,7 @@ from omegaconf import OmegaConf
 from semdp.configs import compose_config
 from semdp.embedded.follower_eval import point_to_polyline_distance
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
+from semdp.run_config import load_run_config
 
 
 def _segment_distance(waypoints: np.ndarray, centre: np.ndarray) -> float:
@@ -68,12 +69,11 @@ def load_sac_policy(run_dir: str | Path, stochastic: bool = False):
     """``obs -> action`` of the SAC actor saved in ``run_dir``: the mean action, or a sample as
     during training (``stochastic``)."""
     import torch
-    from omegaconf import OmegaConf
 
     from semdp.common.networks import SquashedGaussianActor
 
     run_dir = Path(run_dir)
-    cfg = OmegaConf.load(run_dir / "config.yaml")
+    cfg = load_run_config(run_dir)
     state = torch.load(run_dir / "checkpoints" / "last.pt", map_location="cpu",
                        weights_only=False)["algo"]["actor"]
     obs_dim = int(state["net.0.weight"].shape[1])

@@ -13,6 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from semdp.algos.base import CHECKPOINT_NAME, POLICY_NAME, Algorithm
 from semdp.build import build_algorithm
+from semdp.run_config import load_run_config
 
 
 def load_trained(
@@ -40,7 +41,7 @@ def load_trained(
         raise ValueError(f"{run_dir} is not a finished run dir (needs config.yaml and "
                          f"checkpoints/{ckpt.name} or {POLICY_NAME})")
     if cfg is None:
-        cfg = OmegaConf.load(run_dir / "config.yaml")
+        cfg = load_run_config(run_dir)
     torch.set_num_threads(int(cfg.get("torch_threads", 1) or 1))
     algo = build_algorithm(cfg)
     if ckpt.is_file():

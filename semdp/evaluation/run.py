@@ -32,6 +32,7 @@ from semdp.evaluation.options import EvalOptions, parse_arguments
 from semdp.evaluation.transfer_variant import LAYOUT_SEED
 from semdp.evaluation.zoo import resolve
 from semdp.rendering.video import write_video
+from semdp.run_config import load_run_config
 
 DEFAULT_EPISODES = 50
 #: variant=transfer: the stand-in's 10 fixed layouts (semdp/evaluation/transfer_variant.py).
@@ -101,7 +102,7 @@ def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[
     run_dir, out_root = resolve(str(run_dir))
     check_run_dir(run_dir)
     options = parse_arguments(arguments)
-    saved = OmegaConf.load(run_dir / "config.yaml")
+    saved = load_run_config(run_dir)
     cfg = edited_config(saved, options)
     seeds = episode_seeds(options, cfg)
     start = time.perf_counter()

@@ -11,7 +11,7 @@ at ``theta_old``, where the means and standard deviations agree:
 ``J_mu`` the Jacobian of the mean network's outputs over the batch; the cross terms and the
 terms with second derivatives of ``mu`` vanish there. ``J_mu v`` is one forward pass of
 tangents through the MLP and ``J_mu^T u`` one backward pass, both written out with matrix
-products (:mod:`semdp.common.mlp_grads`), so a product costs the arithmetic of three passes
+products (:mod:`semdp.algos.fast.mlp_grads`), so a product costs the arithmetic of three passes
 without autograd's double-backward graph. The activations are computed once per update.
 """
 
@@ -20,7 +20,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from semdp.common.mlp_grads import (
+from semdp.algos.fast.mlp_grads import (
     ACTIVATION_GRADS,
     ACTIVATIONS,
     backprop_mlp,

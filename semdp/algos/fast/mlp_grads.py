@@ -1,6 +1,7 @@
 """Hand-written derivatives of the MLPs of :func:`~semdp.common.networks.mlp` (``Linear, act,
 ..., Linear`` with tanh or ReLU), for the update steps whose autograd bookkeeping costs more
-than their arithmetic (:mod:`semdp.common.stacked_critics`, :mod:`semdp.common.gaussian_fisher`).
+than their arithmetic (:mod:`semdp.algos.fast.stacked_critics`,
+:mod:`semdp.algos.fast.gaussian_fisher`).
 """
 
 from __future__ import annotations

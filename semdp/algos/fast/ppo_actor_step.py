@@ -10,7 +10,7 @@ diagonal Gaussian with a state-independent ``log_std`` the derivatives are short
   in halves and ``clamp`` passes its own half inside the range);
 * d log pi / d mu = (a - mu) / sigma^2, d log pi / d log_std = (a - mu)^2 / sigma^2 - 1, and the
   entropy's d / d log_std = 1 per dimension;
-* d / d mu goes back through the mean MLP (:mod:`semdp.common.mlp_grads`).
+* d / d mu goes back through the mean MLP (:mod:`semdp.algos.fast.mlp_grads`).
 
 So a step is ~40 tensor operations without a graph. Its Adam step is the actor's
 :class:`~semdp.common.optim.FlatAdam` on its own buffers; the numbers equal autograd's up to
@@ -24,7 +24,7 @@ import math
 import torch
 from torch import nn
 
-from semdp.common.mlp_grads import (
+from semdp.algos.fast.mlp_grads import (
     ACTIVATION_GRADS,
     ACTIVATIONS,
     backprop_mlp,

@@ -1,7 +1,9 @@
-"""A forked helper that rolls out its share of the training sub-envs each epoch.
+"""The helper-process rollout collector (``vectorization="async"``/``"auto"``): a forked helper
+rolls out its share of the training sub-envs each epoch while the trainer rolls out the others.
 
-``vectorization="async"`` of the on-policy algorithms (semdp/README.md, "Throughput"): the
-helper holds the sub-envs ``rows`` as they were when it was forked, and each epoch, given this
+:class:`HelperCollector` has the interface of the plain
+:class:`~semdp.algos.rollout.LocalCollector`. The helper (:class:`RolloutHelper`) holds the
+sub-envs ``rows`` as they were when it was forked, and each epoch, given this
 epoch's actor, normaliser statistics and sampling noise, runs
 :func:`~semdp.algos.rollout.roll_part` on them while the trainer runs it on the others; the
 two never wait for each other within the epoch (see :mod:`semdp.algos.rollout` for why the
@@ -12,7 +14,9 @@ helper (the round trip a checkpoint does in the trainer).
 from __future__ import annotations
 
 import copy
+import logging
 import pickle
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -20,14 +24,23 @@ import gymnasium as gym
 import numpy as np
 import torch
 
+from semdp.algos.fast.option_probe import FasterOption
 from semdp.algos.rollout import RolloutPart, roll_part
 from semdp.common.networks import GaussianActor
 from semdp.common.normalization import RunningNormalizer
-from semdp.common.vector_stepping import VectorStepper
+from semdp.common.vector_stepping import VectorStepper, stepper_for
 from solvers.workers import Helper
+
+logger = logging.getLogger(__name__)
 
 #: Pickle protocol of the helper's sub-envs (torch.save's default, as for in-process envs).
 STATE_PROTOCOL = 2
+#: ``vectorization="auto"``: seconds per vector step of the envs (first rollout, in this
+#: process) from which they move to the helper.
+ASYNC_MIN_STEP_S = 2e-4
+#: Fraction of the sub-envs the trainer rolls out itself (it also values the merged rollout,
+#: so it takes a little less than half).
+TRAINER_SHARE: tuple[int, int] = (2, 5)
 
 
 class PickledEnv:
@@ -149,3 +162,104 @@ class RolloutHelper:
     def close(self) -> None:
         """Stop the helper (call :meth:`gather` first to keep its sub-envs)."""
         self._worker.close()
+
+
+class HelperCollector:
+    """Rolls out the last 3/5 of the sub-envs in a :class:`RolloutHelper`, the others here.
+
+    Args:
+        actor, normalizer, to_env_action: the algorithm's policy.
+        mode: ``"async"`` (always the helper) or ``"auto"`` (``choice`` picks per epoch; envs
+            whose vector step took less than :data:`ASYNC_MIN_STEP_S` stay here: the pipe costs
+            more).
+        choice: the measured choice between the two ways (``auto``).
+    """
+
+    def __init__(
+        self,
+        actor: GaussianActor,
+        normalizer: RunningNormalizer,
+        to_env_action: Callable[[Any], np.ndarray],
+        mode: str,
+        choice: FasterOption,
+    ) -> None:
+        self.actor, self.normalizer, self.to_env_action = actor, normalizer, to_env_action
+        self.mode, self.choice = mode, choice
+        #: Whether the envs are to step with the helper this epoch (``auto``: the choice).
+        self.in_helper = mode == "async"
+        #: Whether the latest rollout used the helper.
+        self.used_helper = False
+        self._helper: RolloutHelper | None = None
+        self._warned = False
+
+    def _helper_for(self, envs: gym.vector.SyncVectorEnv) -> RolloutHelper | None:
+        if self.mode == "auto":
+            self.in_helper = self.choice.choose()
+        local = max(1, (envs.num_envs * TRAINER_SHARE[0]) // TRAINER_SHARE[1])
+        if not self.in_helper or local >= envs.num_envs:
+            self.stop(fetch=True)
+            return None
+        if self._helper is None:
+            self._helper = RolloutHelper(envs, range(local, envs.num_envs), self.actor,
+                                         self.normalizer, self.to_env_action)
+        return self._helper
+
+    def collect(
+        self, envs: Any, obs: np.ndarray, noise: torch.Tensor, seconds: dict[str, float]
+    ) -> RolloutPart:
+        """The rollout of every sub-env (the helper's rows after this process's)."""
+        perf = time.perf_counter
+        start = perf()
+        helper = self._helper_for(envs)
+        n_steps, num_envs = noise.shape[0], envs.num_envs
+        local = helper.rows.start if helper is not None else num_envs
+        if helper is not None:
+            helper.start(self.actor, self.normalizer, noise[:, local:], obs[local:])
+            stepper: Any = VectorStepper(envs, range(local))
+        else:
+            stepper = stepper_for(envs)
+        part = roll_part(self.actor, self.normalizer, self.to_env_action, stepper, range(local),
+                         num_envs, noise[:, :local], obs[:local])
+        seconds["policy"] += part.policy_s
+        seconds["simulation"] += part.simulation_s
+        # this process's vector step, scaled to all the sub-envs
+        step_s = part.simulation_s * num_envs / max(local, 1) / n_steps
+        if helper is not None:
+            wait = perf()
+            remote = helper.result()
+            seconds["simulation"] += perf() - wait
+            seconds["simulation_worker"] += remote.simulation_s
+            part = RolloutPart.concatenate(part, remote)
+        if step_s < ASYNC_MIN_STEP_S:  # cheaper than the pipe to a helper: the envs stay here
+            self.choice.disallow()
+        self.used_helper = helper is not None
+        self.choice.record(self.in_helper, perf() - start)
+        return part
+
+    def snapshot(self, envs: Any) -> Any:
+        """The training env for a checkpoint; with the helper, its live sub-envs.
+
+        ``None`` (with a warning, once) when the helper cannot pickle them: a resume then
+        restarts the episodes in progress, as for an unpicklable env in this process.
+        """
+        if self._helper is None:
+            return envs
+        try:
+            return self._helper.snapshot()
+        except RuntimeError as exc:
+            if not self._warned:
+                logger.warning("the rollout helper cannot pickle the envs (%s): checkpoints "
+                               "omit the env state; a resume will not be bit-identical", exc)
+                self._warned = True
+            return None
+
+    def stop(self, fetch: bool) -> None:
+        """Stop the helper; with ``fetch`` its live sub-envs come back into the trainer's env."""
+        helper, self._helper = self._helper, None
+        if helper is not None:
+            if fetch:
+                try:
+                    helper.gather()
+                except RuntimeError:  # a rollout was in flight (an error interrupted it)
+                    pass
+            helper.close()

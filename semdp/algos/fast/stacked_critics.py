@@ -1,6 +1,6 @@
 """The reward and cost critics' regression as one stacked network with hand-written gradients.
 
-:func:`~semdp.common.critic_regression.regress_critics` minimises, per minibatch,
+:func:`~semdp.algos.on_policy.regress_critics` minimises, per minibatch,
 ``mean((V_r - R_r)^2) + mean((V_c - R_c)^2) + l2 * sum ||W||^2`` over both critics (semdp/README.md,
 "Algorithms and recorded choices"). With 64x64 critics and minibatches of ~128 that is a few
 microseconds of arithmetic per operation and tens of microseconds of autograd bookkeeping, and
@@ -24,7 +24,7 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import nn
 
-from semdp.common.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, backprop_mlp, mlp_layers
+from semdp.algos.fast.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, backprop_mlp, mlp_layers
 from semdp.common.optim import FlatAdam
 
 
@@ -111,7 +111,7 @@ class StackedCritics:
         max_grad_norm: float | None,
         stop: Callable[[], bool] | None = None,
     ) -> tuple[float, float] | None:
-        """:func:`~semdp.common.critic_regression.regress_critics` on the stacked network
+        """:func:`~semdp.algos.on_policy.regress_critics` on the stacked network
         (its arguments, with the targets as three tensors, and its return value)."""
         flat, exp_avg, exp_avg_sq = self.optimizer.buffers()
         index = self.index
