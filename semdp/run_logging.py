@@ -14,8 +14,14 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from semdp.common.logger import RowSource, RunLogging, SinkFactory, run_logging
-from semdp.common.tensorboard import TensorBoardRows, tensorboard_available
+from semdp.common.logger import (
+    RowSource,
+    RunLogging,
+    SinkFactory,
+    TensorBoardRows,
+    run_logging,
+    tensorboard_available,
+)
 
 logger = logging.getLogger(__name__)
 

@@ -15,8 +15,13 @@ import pytest
 from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-from semdp.common.logger import TIME_SPLIT_COLUMNS, TIMING_COLUMNS, ProgressCSV, run_logging
-from semdp.common.tensorboard import TensorBoardRows
+from semdp.common.logger import (
+    TIME_SPLIT_COLUMNS,
+    TIMING_COLUMNS,
+    ProgressCSV,
+    TensorBoardRows,
+    run_logging,
+)
 from semdp.run_logging import tensorboard_enabled
 
 REPO = Path(__file__).resolve().parents[1]

@@ -27,8 +27,7 @@ from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from semdp.algos.eval_episodes import evaluate_episodes, summarize
-from semdp.common.logger import ProgressCSV, write_metrics
-from semdp.common.phase_timer import PhaseTimer
+from semdp.common.logger import PhaseTimer, ProgressCSV, write_metrics
 from semdp.common.seeding import get_rng_states, set_rng_states
 
 logger = logging.getLogger(__name__)

@@ -7,7 +7,7 @@
 Each algorithm is built exactly as ``semdp-train`` builds it (same configs, same vector env),
 runs ``epochs`` epochs after one warm-up epoch, and the table reports env steps per second of
 training (rollout + update, no evaluation) -- the ``fps`` column of ``progress.csv`` -- and where
-the time went (:mod:`semdp.common.phase_timer`): simulation (stepping the envs, or waiting for
+the time went (:class:`semdp.common.logger.PhaseTimer`): simulation (stepping the envs, or waiting for
 the helper that steps them), policy (actor and critic forward passes while acting), storage
 (buffer writes, bookkeeping, GAE) and update (actor and critic optimisation), in percent of the
 wall time; ``helper sim`` is the time the env helper spent stepping (``vectorization=async``),

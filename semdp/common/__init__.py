@@ -1,2 +1,3 @@
-"""Pieces shared by the RL algorithms: advantages, Lagrange multipliers, networks, buffers,
-observation normalisation, seeding, run-directory logging and checkpoints."""
+"""What every algorithm shares: networks, observation normalisation, optimisers, seeding, the
+vector-env stepper and the run-directory writers. Pieces one algorithm family owns live beside
+it in :mod:`semdp.algos`."""

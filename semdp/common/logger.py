@@ -9,6 +9,14 @@ What else happens to a row is decided by whoever starts the run, not by the epoc
 :class:`RowSource` objects (e.g. the SEMDP time split) to its header and each row, and hands
 every written row to the given :class:`RowSink` objects (e.g. TensorBoard event files), which
 are closed when the context ends.
+
+Two more pieces of what a run writes live here: :class:`TensorBoardRows`, a :class:`RowSink`
+that mirrors every numeric cell of a row into TensorBoard event files beside ``progress.csv``
+(optional extra ``tensorboard``; scalars at step ``env_steps``, empty cells skipped; view with
+``tensorboard --logdir outputs/``), and :class:`PhaseTimer`, the seconds per phase of an
+algorithm's epoch (``simulation`` stepping the envs or waiting for the process that steps them,
+``policy`` forward passes while acting, ``storage`` buffer writes, bookkeeping and GAE,
+``update`` optimisation; ``simulation_worker`` the helper's stepping, which overlaps them).
 """
 
 from __future__ import annotations
@@ -16,9 +24,12 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import csv
+import importlib.util
 import json
 import math
+import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -186,3 +197,82 @@ def write_metrics(path: Path, metrics: Mapping[str, Any]) -> None:
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(metrics, indent=2, default=float) + "\n")
     tmp.replace(path)
+
+
+# ----------------------------------------------------------------- TensorBoard
+#: The x axis of every scalar.
+STEP_COLUMN = "env_steps"
+
+
+def tensorboard_available() -> bool:
+    """Whether the ``tensorboard`` package (needed by ``SummaryWriter``) is importable."""
+    return importlib.util.find_spec("tensorboard") is not None
+
+
+def _scalar(value: Any) -> float | None:
+    if value is None or isinstance(value, bool | str):
+        return None
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    return number if math.isfinite(number) else None
+
+
+class TensorBoardRows:
+    """Writes each row as scalars into ``run_dir`` (``events.out.tfevents.*`` files).
+
+    Args:
+        run_dir: directory of the event files (the run directory).
+        purge_step: on a resume, the first step written again; TensorBoard discards the
+            earlier session's events from that step on (``SummaryWriter(purge_step=...)``).
+    """
+
+    def __init__(self, run_dir: Path, purge_step: int | None = None) -> None:
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.purge_step = purge_step
+        self.writer = SummaryWriter(log_dir=str(run_dir), purge_step=purge_step)
+
+    def write(self, row: Mapping[str, Any]) -> None:
+        """Add every numeric column of ``row`` at step ``row["env_steps"]`` and flush."""
+        step = _scalar(row.get(STEP_COLUMN))
+        if step is None:
+            return
+        for column, value in row.items():
+            number = _scalar(value)
+            if number is not None:
+                self.writer.add_scalar(column, number, global_step=int(step))
+        self.writer.flush()
+
+    def close(self) -> None:
+        """Flush and close the event file."""
+        self.writer.close()
+
+
+# ----------------------------------------------------------------- phase timer
+PHASES: tuple[str, ...] = ("simulation", "policy", "storage", "update", "simulation_worker")
+
+
+class PhaseTimer:
+    """Accumulated seconds per phase; :attr:`seconds` is a plain dict of floats."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = dict.fromkeys(PHASES, 0.0)
+
+    def add(self, phase: str, seconds: float) -> None:
+        """Book ``seconds`` to ``phase``."""
+        self.seconds[phase] += seconds
+
+    @contextmanager
+    def phase(self, name: str) -> Iterator[None]:
+        """Book the time spent inside the ``with`` block to ``name``."""
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[name] += time.perf_counter() - start
+
+    def snapshot(self) -> dict[str, float]:
+        """A copy of the current totals (subtract two snapshots for an interval)."""
+        return dict(self.seconds)
