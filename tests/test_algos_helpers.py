@@ -80,9 +80,9 @@ def test_success_flags_follow_gymnasiums_merged_final_info() -> None:
 
 @pytest.mark.parametrize("local", [1, 2])
 def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> None:
-    from semdp.algos.fast.rollout_helper import RolloutHelper
+    from semdp.algos.fast.rollout_helper import RolloutHelper, merge_parts
     from semdp.algos.ppo import PPO
-    from semdp.algos.rollout import RolloutPart, noise_for, roll_part
+    from semdp.algos.rollout import noise_for, roll_part
 
     cfg = {"id": "sims/SafetyCarGoal2-v0", "num_envs": 3, "kwargs": {"max_episode_steps": 25}}
     torch.manual_seed(0)
@@ -102,7 +102,7 @@ def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> 
             mine = roll_part(algo.actor, algo.normalizer, algo.to_env_action,
                              VectorStepper(algo.envs, range(local)), range(local), 3,
                              noise[:, :local], obs[:local])
-            split = RolloutPart.concatenate(mine, helper.result())
+            split = merge_parts(mine, helper.result())
             for name in ("raw_obs", "obs", "actions", "log_probs", "rewards", "costs",
                          "terminated", "truncated", "last_obs"):
                 np.testing.assert_array_equal(getattr(split, name), getattr(whole, name))

@@ -54,23 +54,6 @@ class RolloutPart:
     simulation_s: float = 0.0
     policy_s: float = 0.0
 
-    @classmethod
-    def concatenate(cls, first: RolloutPart, second: RolloutPart) -> RolloutPart:
-        """Both parts side by side, ``second``'s sub-envs after ``first``'s."""
-        k = first.rewards.shape[1]
-
-        def cat(name: str) -> np.ndarray:
-            return np.concatenate([getattr(first, name), getattr(second, name)], axis=1)
-
-        assert first.last_obs is not None and second.last_obs is not None
-        return cls(
-            cat("raw_obs"), cat("obs"), cat("actions"), cat("log_probs"), cat("rewards"),
-            cat("costs"), cat("terminated"), cat("truncated"),
-            {**first.final_obs, **{(t, k + i): o for (t, i), o in second.final_obs.items()}},
-            np.concatenate([first.last_obs, second.last_obs]),
-            first.simulation_s + second.simulation_s, first.policy_s + second.policy_s,
-        )
-
 
 def noise_for(n_steps: int, num_envs: int, act_dim: int) -> torch.Tensor:
     """The rollout's sampling noise ``(n_steps, num_envs, act_dim)``, drawn from torch's global

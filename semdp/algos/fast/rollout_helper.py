@@ -43,6 +43,23 @@ ASYNC_MIN_STEP_S = 2e-4
 TRAINER_SHARE: tuple[int, int] = (2, 5)
 
 
+def merge_parts(first: RolloutPart, second: RolloutPart) -> RolloutPart:
+    """Both parts side by side, ``second``'s sub-envs after ``first``'s."""
+    k = first.rewards.shape[1]
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate([getattr(first, name), getattr(second, name)], axis=1)
+
+    assert first.last_obs is not None and second.last_obs is not None
+    return RolloutPart(
+        cat("raw_obs"), cat("obs"), cat("actions"), cat("log_probs"), cat("rewards"),
+        cat("costs"), cat("terminated"), cat("truncated"),
+        {**first.final_obs, **{(t, k + i): o for (t, i), o in second.final_obs.items()}},
+        np.concatenate([first.last_obs, second.last_obs]),
+        first.simulation_s + second.simulation_s, first.policy_s + second.policy_s,
+    )
+
+
 class PickledEnv:
     """A sub-env pickled in the helper; pickling this pickles to that env (a checkpoint entry
     that unpickles to the sub-env itself, without a second pickling in the trainer)."""
@@ -229,7 +246,7 @@ class HelperCollector:
             remote = helper.result()
             seconds["simulation"] += perf() - wait
             seconds["simulation_worker"] += remote.simulation_s
-            part = RolloutPart.concatenate(part, remote)
+            part = merge_parts(part, remote)
         if step_s < ASYNC_MIN_STEP_S:  # cheaper than the pipe to a helper: the envs stay here
             self.choice.disallow()
         self.used_helper = helper is not None
