@@ -1,6 +1,6 @@
 """Pick the faster of two ways of doing the same work from their measured times.
 
-The on-policy algorithms' helper processes (semdp/README.md, "Throughput") pay off only when a
+The on-policy algorithms' helper processes (docs/performance.md) pay off only when a
 core is free: on a machine other jobs keep busy the helper and the trainer take turns on one
 core and add their pipe traffic. Both ways give the same numbers, so the choice may change
 between epochs; :class:`FasterOption` measures each once, keeps the faster, leaves it when it
