@@ -35,12 +35,17 @@ escape choice accelerated the robot into the hazard; replayed with ``"brake"`` t
 no cost. Over the safety table both have no episode with cost, and ``"brake"`` replaces
 1.1-5.8x more commands where the filter acts on at least 1 % of them (the Point and the Car;
 outputs/reference/safety/COMMAND.md), so the default stays ``"escape"``.
+
+A :attr:`SafetyShield.recorder`, when set, is given a :class:`FilterRecord` of every
+:meth:`SafetyShield.filter` call (the robot state it read, the proposed and applied actions,
+the branch taken); :mod:`semdp.evaluation.cost_trace` records the steps before a cost step with
+it. None (the default) records nothing.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -62,6 +67,10 @@ FALLBACKS = ("escape", "brake")
 #: Cost-region radius of each kind of object at the root node, before the robot's extent.
 _CONTACT_KINDS = ("vases", "pillars", "gremlins")
 
+#: The ways :meth:`SafetyShield.filter` can go: no cost region within reach (``"unchecked"``),
+#: the action certified (``"kept"``), braking (``"braked"``), the best escape (``"escaped"``).
+FILTER_BRANCHES = ("unchecked", "kept", "braked", "escaped")
+
 
 @dataclass
 class ShieldStats:
@@ -71,6 +80,42 @@ class ShieldStats:
     checked: int = 0
     braked: int = 0
     escaped: int = 0
+
+
+@dataclass(frozen=True)
+class FilterRecord:
+    """One :meth:`SafetyShield.filter` call, as a set :attr:`SafetyShield.recorder` receives it.
+
+    Attributes:
+        shield: the filter (its :meth:`~SafetyShield.cost_regions` and
+            :meth:`~SafetyShield.clearance` re-evaluate the decision).
+        model: the robot model the filter used.
+        base: the unwrapped env, still before the step.
+        obs: the observation the filter read.
+        state: the robot state the filter read.
+        proposed: the action given to the filter.
+        applied: the action it returned.
+        branch: one of :data:`FILTER_BRANCHES`.
+    """
+
+    shield: SafetyShield
+    model: RobotModel
+    base: Any
+    obs: np.ndarray
+    state: RobotState
+    proposed: np.ndarray
+    applied: np.ndarray
+    branch: str
+
+
+def _branch(before: tuple[int, int, int], stats: ShieldStats) -> str:
+    """The branch of one filter call from its counter increments (``before``: checked, braked,
+    escaped at its start)."""
+    if stats.escaped > before[2]:
+        return "escaped"
+    if stats.braked > before[1]:
+        return "braked"
+    return "kept" if stats.checked > before[0] else "unchecked"
 
 
 class SafetyShield:
@@ -92,6 +137,10 @@ class SafetyShield:
     #: Class-level default: filters pickled before ``fallback`` existed (checkpoints hold the
     #: env) resume with the behaviour they had.
     fallback: str = "escape"
+    #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
+    #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that filters
+    #: unpickled from a checkpoint have it too.
+    recorder: Callable[[FilterRecord], None] | None = None
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
@@ -174,6 +223,13 @@ class SafetyShield:
                 bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius)
         return bound
 
+    def clearance(self, state: RobotState, first: np.ndarray, regions: np.ndarray) -> float:
+        """Smallest ``distance - R`` to ``regions`` over ``first`` then the braking manoeuvre,
+        by the bound robot's model: the filter's certificate (>= 0: certified)."""
+        if self._model is None:
+            raise RuntimeError("bind() the filter to an env first")
+        return self._clearance(self._model, state, first, regions)
+
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
                    regions: np.ndarray) -> float:
         """Smallest ``distance - R`` over ``first`` then the braking manoeuvre."""
@@ -185,7 +241,24 @@ class SafetyShield:
         return float((gaps - regions[None, :, 2]).min())
 
     def filter(self, action: np.ndarray, base: Any, obs: np.ndarray) -> np.ndarray:
-        """The action to apply: ``action`` if certified, else braking, else the best escape."""
+        """The action to apply: ``action`` if certified, else braking, else the best escape.
+
+        A set :attr:`recorder` is then given the call's :class:`FilterRecord`.
+        """
+        if self.recorder is None:
+            return self._filter(action, base, obs)
+        before = (self.stats.checked, self.stats.braked, self.stats.escaped)
+        body = base.body
+        state = RobotState(body.position.x, body.position.y, body.velocity.x, body.velocity.y,
+                           body.angle, body.angular_velocity)
+        applied = self._filter(action, base, obs)
+        assert self._model is not None
+        self.recorder(FilterRecord(self, self._model, base, obs, state, np.asarray(action),
+                                   np.asarray(applied), _branch(before, self.stats)))
+        return applied
+
+    def _filter(self, action: np.ndarray, base: Any, obs: np.ndarray) -> np.ndarray:
+        """:meth:`filter`'s decision."""
         if self._model is None:
             self.bind(base)
         model = self._model

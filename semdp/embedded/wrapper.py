@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -42,6 +43,24 @@ class Window:
     info: dict[str, Any] = field(default_factory=dict)
     cost_terms: dict[str, float] = field(default_factory=dict)
     shield_interventions: int = 0
+
+
+@dataclass(frozen=True)
+class LowLevelRecord:
+    """One low-level step, as a set :attr:`SafetyEmbeddedEnv.recorder` receives it right after
+    the inner env stepped (:mod:`semdp.evaluation.cost_trace`).
+
+    Attributes:
+        env: the SEMDP env.
+        window: its window, updated by the step (``info``, ``obs``, ``plan``); it keeps changing.
+        action: the low-level action sent to the robot (after the safety filter, if any).
+        step: the env's lifetime low-level step count, this step included.
+    """
+
+    env: SafetyEmbeddedEnv
+    window: Window
+    action: Any
+    step: int
 
 
 class SafetyEmbeddedEnv(gym.Wrapper):
@@ -98,7 +117,14 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             (:class:`~semdp.embedded.shield.SafetyShield`: one step then braking must stay out of
             every cost region, else brake or escape); None = the thesis' plain follower.
             ``info["shield_interventions"]`` counts the window's replaced actions.
+
+    A :attr:`recorder`, when set, is given a :class:`LowLevelRecord` of every low-level step.
     """
+
+    #: Given a :class:`LowLevelRecord` after every low-level step when set (diagnostics:
+    #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that envs
+    #: unpickled from a checkpoint have it too.
+    recorder: Callable[[LowLevelRecord], None] | None = None
 
     def __init__(
         self,
@@ -279,6 +305,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         window.goal_met = window.goal_met or bool(info.get("goal_met", False))
         if self.frame_every and (self.low_level_steps + window.steps) % self.frame_every == 0:
             self._record_frame()
+        if self.recorder is not None:
+            self.recorder(LowLevelRecord(self, window, low_action,
+                                         self.low_level_steps + window.steps))
         return bool(terminated or truncated) or window.steps >= self.k
 
     def end_window(self, window: Window):
