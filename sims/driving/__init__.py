@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from gymnasium.envs.registration import register, registry
 
+from sims.driving.base import DrivingEnv
 from sims.driving.controller import PurePursuitController, run_episode
-from sims.driving.env import DrivingEnv
 from sims.driving.tasks import DriveCircleEnv, DriveTrajectoryEnv
 from sims.driving.tracks import CircleTrack, RandomPathTrack
 from sims.driving.vehicle import BicycleModel, VehicleParams, fiala_lateral_force

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sims.driving.env import DrivingEnv
+from sims.driving.base import DrivingEnv
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """Top-down ``rgb_array`` rendering of the driving tasks (road, car with heading, recent path).
 
 PIL is imported lazily here so that importing :mod:`sims` stays light. The drawing reads the
-scene through :class:`DrivingScene` (the attributes a :class:`~sims.driving.env.DrivingEnv`
+scene through :class:`DrivingScene` (the attributes a :class:`~sims.driving.base.DrivingEnv`
 has), so this module does not import the env.
 """
 

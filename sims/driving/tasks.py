@@ -1,5 +1,6 @@
 """The two driving tasks of thesis App. A.2 (Fig. A.2): the track each follows and where its
-episodes start, over the MDP of :mod:`sims.driving.env` (observation, reward Eq. A.1, cost Eq. A.2).
+episodes start, over the MDP of :mod:`sims.driving.base` (observation, reward Eq. A.1, cost
+Eq. A.2).
 
 Registered as ``sims/DriveCircle-v0`` and ``sims/DriveTrajectory-v0`` by :mod:`sims.driving`.
 """
@@ -11,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from sims.driving.env import DrivingEnv
+from sims.driving.base import DrivingEnv
 from sims.driving.tracks import CircleTrack, RandomPathTrack
 
 
