@@ -54,6 +54,7 @@ from semdp.build import build_algorithm, validate_config
 from semdp.embedded.shield import FilterRecord, SafetyShield
 from semdp.embedded.wrapper import LowLevelRecord, SafetyEmbeddedEnv
 from semdp.evaluation.errors import EvalError
+from semdp.run_config import load_run_config
 from semdp.run_logging import progress_logging
 
 #: The trace's file name in the output directory.
@@ -203,10 +204,10 @@ def replay_epoch(run_dir: str | Path, out_dir: str | Path,
         raise EvalError(f"{out_dir} exists; give a new directory for the replay")
     tracer = CostTracer(steps)
     shutil.copytree(run_dir, out_dir)
-    cfg = replay_config(OmegaConf.load(out_dir / "config.yaml"), out_dir)
+    cfg = replay_config(load_run_config(out_dir), out_dir)
     OmegaConf.save(cfg, out_dir / "config.yaml")
     with recording(tracer):  # the saved config, as semdp-train resume=<out_dir> reads it
-        _resume(OmegaConf.load(out_dir / "config.yaml"), out_dir)
+        _resume(load_run_config(out_dir), out_dir)
     (out_dir / TRACE_NAME).write_text(json.dumps(tracer.dumps, indent=1, default=float))
     return tracer.dumps
 
