@@ -2,6 +2,9 @@
 
     cfg = compose_config("train", ["experiment=semdp", "robot=car"])
     planner = instantiate(compose_node("planner", "ipopt", ["clearance=0.6"]))
+
+The options are Hydra's: the YAML files of ``conf/`` and the robot x task ``env`` options that
+importing :mod:`semdp.paths` registers in the ConfigStore (:mod:`semdp.env_products`).
 """
 
 from __future__ import annotations
@@ -9,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from hydra import compose, initialize_config_dir
+from hydra.core.global_hydra import GlobalHydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, open_dict
 
@@ -31,6 +35,14 @@ def compose_config(config_name: str, overrides: Sequence[str] = ()) -> DictConfi
     return cfg
 
 
+def group_options(group: str) -> list[str]:
+    """The options of a config group as Hydra lists them (files and ConfigStore nodes), without
+    the ``_``-prefixed bases (``env/_base``, ``method/_semdp``)."""
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        options = GlobalHydra.instance().config_loader().get_group_options(group)
+    return sorted(name for name in options if not name.startswith("_"))
+
+
 def compose_node(group: str, name: str, overrides: Sequence[str] = ()) -> DictConfig:
     """One option of a config group (e.g. ``compose_node("planner", "ipopt")``), with
     ``overrides`` of its keys (``["clearance=0.6"]``).
@@ -38,7 +50,7 @@ def compose_node(group: str, name: str, overrides: Sequence[str] = ()) -> DictCo
     Raises:
         ValueError: ``name`` is not an option of ``group`` (the message lists the options).
     """
-    options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml") if p.stem[0] != "_")
+    options = group_options(group)
     if name not in options:
         raise ValueError(f"unknown {group} {name!r}; options: {options}")
     cfg = compose_config(f"{group}/{name}", [f"{group}.{item}" for item in overrides])

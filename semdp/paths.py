@@ -2,12 +2,17 @@
 
 The Hydra configs live in the repository's top-level ``conf/``; the package reaches them as
 ``semdp/conf`` (a link to ``../conf`` in a checkout, a copy inside an installed wheel), so the
-apps find their configs whether the project is installed editable or as a package.
+apps find their configs whether the project is installed editable or as a package. Importing
+this module also registers the ``env`` options that are robot x task products
+(:mod:`semdp.env_products`: ``env=point_goal1``, ``env=semdp_car_push1``, ...), so whatever
+composes from :data:`CONF_DIR` sees them.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+
+from semdp import env_products
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 #: Hydra config directory.
@@ -20,3 +25,5 @@ REFERENCE_DIR = REPO_ROOT / "outputs" / "reference"
 
 if not (CONF_DIR / "train.yaml").is_file():  # pragma: no cover - a broken install
     raise RuntimeError(f"Hydra config directory not found at {CONF_DIR}: reinstall the package")
+
+env_products.register()

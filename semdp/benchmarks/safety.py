@@ -63,7 +63,7 @@ class Cell:
 
 def build_semdp_env(robot: str, task: str, config: str,
                     overrides: tuple[str, ...] = ()) -> SafetyEmbeddedEnv:
-    """The SEMDP env of ``conf/env/semdp_<robot>_<task>.yaml`` as composed by Hydra, with its
+    """The SEMDP env ``env=semdp_<robot>_<task>`` as composed by Hydra, with its
     evaluation (``config="eval"``) or training (``"train"``) wrapper."""
     cfg = compose_config("train", ["algo=sac", f"env=semdp_{robot}_{task.lower()}", *overrides])
     env_cfg = OmegaConf.to_container(cfg.env, resolve=True)

@@ -5,7 +5,7 @@
     python -m semdp.embedded.safety_eval --env semdp_mass_push1 --policy random \
         planner@env.eval_planner=lm env.perception=gt
 
-The env is the evaluation env of ``conf/env/<--env>.yaml`` (its ``eval_wrapper``), composed by
+The env is the evaluation env of the option ``env=<--env>`` (its ``eval_wrapper``), composed by
 Hydra with the trailing overrides.
 
 Runs ``episodes`` full episodes of :class:`SafetyEmbeddedEnv` with a trained SAC high level
