@@ -90,7 +90,7 @@ def test_preset_ci_sweep_and_report(name: str, tmp_path: Path) -> None:
         if metrics["status"] == "completed" and name.startswith("semdp"):
             assert metrics["label"] in methods
     # Every run completes, except "SAC + PPO Lag" while its PPO-Lag follower weights are not
-    # committed (conf/follower/<robot>_ppo_lag.yaml names them; made by semdp_low_ppo_lag).
+    # committed (conf/robot/<robot>.yaml's ppo_lag_follower names them; made by semdp_low_ppo_lag).
     weights = REPO / "semdp" / "embedded" / "weights"
     missing = [r for r in ROBOTS if not (weights / f"{r}_ppo_lag.pt").is_file()]
     allowed = {"sac_ppo_lag"} if missing else set()

@@ -4,7 +4,6 @@ committed Point weights and the Mass P-controller."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -130,17 +129,17 @@ def test_mass_p_controller_reaches_goals() -> None:
     assert stats.success_rate == 1.0
 
 
-@pytest.mark.parametrize(
-    "name", sorted(p.stem for p in (Path(__file__).parents[1] / "conf" / "follower").glob("*.yaml"))
-)
-def test_every_follower_config_builds_and_acts_in_its_robots_push_env(name: str) -> None:
-    """Each conf/follower entry (committed weights included) loads, binds to the observation of
-    its robot's Push1 env and returns a finite action of the env's action shape."""
-    robot = name.split("_")[0]
+@pytest.mark.parametrize("kind", ["follower", "ppo_lag_follower"])
+@pytest.mark.parametrize("robot", ["point", "car", "mass"])
+def test_every_follower_config_builds_and_acts_in_its_robots_push_env(robot: str,
+                                                                     kind: str) -> None:
+    """Each follower node of conf/robot/<robot>.yaml (committed weights included) loads, binds to
+    the observation of its robot's Push1 env and returns a finite action of the env's action
+    shape."""
     env = gym.make(f"sims/Safety{robot.capitalize()}Push1-v0")
     obs, _ = env.reset(seed=0)
     base = env.unwrapped
-    follower = instantiate(compose_node("follower", name))
+    follower = instantiate(compose_node("robot", robot)[kind])
     if isinstance(follower, PolicyFollower):
         follower.bind(base.obs_slices)
     target = np.asarray(base.robot_position) + np.array([0.3, 0.0])

@@ -2,8 +2,9 @@
 
 The saved config of a Safety-Embedded MDP run holds its evaluation wrapper as
 ``env.eval_wrapper`` with the planner as a full ``conf/planner`` node (``_target_``, ``backend``,
-``lm_adaptive``, ``clearance``, ...) and the follower as a ``conf/follower`` node (semdp/README.md,
-"The Safety-Embedded MDP"). The shorthands edit that node:
+``lm_adaptive``, ``clearance``, ...) and the follower as a node of the robot's
+``conf/robot/<robot>.yaml`` (semdp/README.md, "The Safety-Embedded MDP"). The shorthands edit
+that node:
 
 - ``planner=<name>``: ``conf/planner/<name>.yaml`` composed with Hydra's compose API; the run's
   ``clearance`` is kept, and its ``rescue_backend`` too when the planner class is the same;
@@ -13,7 +14,8 @@ The saved config of a Safety-Embedded MDP run holds its evaluation wrapper as
   own).
 
 Runs saved before the planner and follower became nodes (``planner: lm_adaptive`` with
-``planner_kwargs``, ``follower: auto``) are first rewritten into the node form.
+``planner_kwargs``, ``follower: auto`` or a follower name ``<robot>`` / ``<robot>_ppo_lag``) are
+first rewritten into the node form.
 """
 
 from __future__ import annotations
@@ -43,6 +45,16 @@ def _compose(group: str, name: str) -> DictConfig:
         raise EvalError(str(exc)) from None
 
 
+def _legacy_follower(name: str) -> DictConfig:
+    """A follower saved by name (``point``, ``car_ppo_lag``, ...): the ``follower`` or
+    ``ppo_lag_follower`` node of ``conf/robot/<robot>.yaml`` that holds it now."""
+    robot, _, kind = name.partition("_")
+    key = {"": "follower", "ppo_lag": "ppo_lag_follower"}.get(kind)
+    if key is None:
+        raise EvalError(f"unknown follower {name!r}: <robot> or <robot>_ppo_lag")
+    return _compose("robot", robot)[key]
+
+
 def normalise_legacy(env: DictConfig) -> None:
     """Rewrite string planners / followers of SEMDP wrapper nodes into ``conf`` nodes, in place."""
     for name in ("wrapper", "eval_wrapper"):
@@ -57,7 +69,7 @@ def normalise_legacy(env: DictConfig) -> None:
         if follower == "auto":
             node.follower = None
         elif isinstance(follower, str):
-            node.follower = _compose("follower", follower)
+            node.follower = _legacy_follower(follower)
         for key in ("planner_kwargs", "_recursive_"):
             node.pop(key, None)
 
