@@ -64,11 +64,20 @@ def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
     return {prefix[:-1]: node}
 
 
+#: Top-level keys that no run reads: ``resume``, and the tables whose values reach the run only
+#: through interpolations into the keys compared (``budget``: into ``total_steps``,
+#: ``algo.steps_per_epoch``, ...; ``robot``: into ``env``; ``preset``: the per-preset budget
+#: tables of configs saved before conf/budget/ held them).
+_NOT_RUN = ("resume", "budget", "robot", "preset")
+
+
 def _config_differences(saved: DictConfig, wanted: DictConfig) -> list[str]:
-    """Dotted keys whose resolved values differ between two run configs (``resume`` aside)."""
+    """Dotted keys whose resolved values differ between two run configs (:data:`_NOT_RUN`
+    aside)."""
     a = _flat(OmegaConf.to_container(saved, resolve=True))
     b = _flat(OmegaConf.to_container(wanted, resolve=True))
-    return sorted(k for k in a.keys() | b.keys() if k != "resume" and a.get(k) != b.get(k))
+    return sorted(k for k in a.keys() | b.keys()
+                  if k.split(".", 1)[0] not in _NOT_RUN and a.get(k) != b.get(k))
 
 
 def _auto_resume(cfg: DictConfig, run_dir: Path) -> str | dict[str, Any] | None:
