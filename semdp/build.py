@@ -1,6 +1,6 @@
 """From a composed training config to the objects: validate it, seed, build the envs and the
 algorithm (docs/design.md, "From the command line to the objects"). Library code builds runs
-through this module, never through the ``semdp-train`` app (:mod:`semdp.train`).
+through this module, never through the ``semdp-train`` app (:mod:`semdp.cli.train`).
 """
 
 from __future__ import annotations

@@ -18,11 +18,11 @@ from omegaconf import DictConfig, open_dict
 
 from semdp.algos.fast.critic_helper import CriticWorker
 from semdp.algos.on_policy import CriticTargets, regress_critics
+from semdp.cli.train import run
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import ValueCritic
 from semdp.common.vector_stepping import VectorStepper, success_flags
 from semdp.envs import make_vec_env, split_step_infos
-from semdp.train import run
 from solvers.workers import fork_available
 
 pytestmark = pytest.mark.skipif(not fork_available(), reason="helpers need fork")
@@ -196,7 +196,7 @@ def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from semdp.algos.fast import helpers, rollout_helper
-    from semdp.train import build_algorithm
+    from semdp.cli.train import build_algorithm
 
     monkeypatch.setattr(helpers, "_cpus", lambda: 2)  # two usable cores, whatever the machine
     monkeypatch.setattr(helpers, "idle_core", lambda: False)  # a busy machine: probe both

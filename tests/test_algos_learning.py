@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from omegaconf import DictConfig
 
-from semdp.train import run
+from semdp.cli.train import run
 
 pytestmark = pytest.mark.slow
 
@@ -81,7 +81,7 @@ def test_cpo_brings_the_cost_to_the_limit_on_the_test_cmdp(
 
 def test_multirun_cli_runs_jobs_in_parallel_and_survives_a_failing_job(tmp_path: Path) -> None:
     sweep = tmp_path / "sweep"
-    cmd = [sys.executable, "-m", "semdp.train", "-m", "algo=ppo,cpo", "env=speed_limit",
+    cmd = [sys.executable, "-m", "semdp.cli.train", "-m", "algo=ppo,cpo", "env=speed_limit",
            "budget=ci", "+env.kwargs.speed_limit=1.0,5.0", f"hydra.sweep.dir={sweep}"]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
     assert done.returncode == 0, done.stderr[-2000:]

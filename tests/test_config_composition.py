@@ -17,9 +17,9 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from semdp import env_products
+from semdp.cli.train import _config_differences
 from semdp.configs import compose_config, group_options
 from semdp.paths import CONF_DIR
-from semdp.train import _config_differences
 
 ROBOTS = ("point", "car", "mass")
 SEMDP_METHODS = ("ours", "ours_gt", "ours_wo_lag", "ppo_lag_sac", "sac_ppo_lag")
@@ -77,7 +77,7 @@ def test_every_preset_robot_method_composes_the_robots_settings(
             assert planner["_target_"] == "solvers.planner.SafeTrajectoryPlanner"
             assert planner["rescue_backend"] == RESCUE[robot], (preset, robot, method, key)
             adaptive = key == "eval_wrapper" and method != "ours_wo_lag"
-            assert planner["lm_adaptive"] is adaptive
+            assert planner["backend"]["adaptive"] is adaptive
         kind, weights = FOLLOWER[robot]
         if method == "sac_ppo_lag":
             kind, weights = "PolicyFollower", f"{robot}_ppo_lag.pt"

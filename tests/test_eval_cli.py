@@ -79,7 +79,7 @@ def test_semdp_run_evaluates_with_plan_statistics_and_an_mp4(runs: dict[str, Pat
     metrics = json.loads((out_dir / "metrics.json").read_text())
     assert metrics["status"] == "completed" and metrics["label"] == "Ours [eval lambda=fixed]"
     assert metrics["arguments"] == ["episodes=3", "lambda=fixed", "video=true", "video_every=5"]
-    assert metrics["settings"]["planner"]["lm_adaptive"] is False
+    assert metrics["settings"]["planner"]["backend"]["adaptive"] is False
     assert metrics["settings"]["seeds"] == [10000, 10001, 10002]
     episodes = metrics["episodes"]
     assert len(episodes) == 3 and metrics["eval"]["episodes"] == 3
@@ -179,7 +179,7 @@ def _bad_run_dir(runs: dict[str, Path], tmp_path: Path, run: str) -> Path:
 def test_bad_arguments_exit_with_one_line_and_write_nothing(
     runs: dict[str, Path], tmp_path: Path, run: str, args: list[str], message: str
 ) -> None:
-    from semdp.eval import main
+    from semdp.cli.eval import main
 
     run_dir = _bad_run_dir(runs, tmp_path, run)
     before = _eval_dirs(run_dir) if run_dir.is_dir() else []
@@ -203,7 +203,7 @@ def test_bad_arguments_from_the_console_script(
 
 
 def test_no_arguments_prints_the_usage_and_exits_1() -> None:
-    proc = _run(sys.executable, "-m", "semdp.eval", check=False)
+    proc = _run(sys.executable, "-m", "semdp.cli.eval", check=False)
     assert proc.returncode == 1 and proc.stdout.startswith("usage: semdp-eval RUN_DIR")
 
 
@@ -220,15 +220,15 @@ def test_planner_shorthand_composes_the_node_and_keeps_the_runs_clearance_and_re
     saved.env.eval_wrapper.planner.clearance = 0.6
     cfg = edited_config(saved, parse_arguments(["planner=lm"]))
     node = cfg.env.eval_wrapper.planner
-    assert node.backend == "lm" and node.lm_adaptive is False
+    assert node.backend._target_ == "solvers.planner.LMSettings" and node.backend.adaptive is False
     assert node.clearance == 0.6 and node.rescue_backend == "ipopt"  # the Car's IPOPT rescue
-    assert saved.env.eval_wrapper.planner.lm_adaptive is True  # the saved config is untouched
+    assert saved.env.eval_wrapper.planner.backend.adaptive is True  # the saved config is untouched
     straight = edited_config(saved, parse_arguments(["planner=straight"])).env.eval_wrapper
     assert straight.planner.rescue_backend is None and straight.planner.clearance == 0.6
     both = edited_config(saved, parse_arguments(["clearance=0.25", "perception=gt",
                                                  "lambda=fixed"])).env.eval_wrapper
-    assert (both.planner.clearance, both.perception, both.planner.lm_adaptive) == (0.25, "gt",
-                                                                                   False)
+    assert (both.planner.clearance, both.perception, both.planner.backend.adaptive) == (
+        0.25, "gt", False)
     assert cfg.env.wrapper.planner.clearance == 0.5  # training planner untouched
 
 
@@ -241,7 +241,7 @@ def test_legacy_string_planner_and_follower_become_nodes() -> None:
     cfg = edited_config(legacy, parse_arguments(["lambda=fixed"]))
     node = cfg.env.eval_wrapper
     assert "planner_kwargs" not in node and "_recursive_" not in node and node.follower is None
-    assert node.planner.clearance == 0.6 and node.planner.lm_adaptive is False
+    assert node.planner.clearance == 0.6 and node.planner.backend.adaptive is False
 
 
 def test_added_keys_and_parse_errors() -> None:

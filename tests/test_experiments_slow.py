@@ -42,7 +42,7 @@ def _cli(module: str, *args: str, timeout: int = 1500) -> subprocess.CompletedPr
 
 
 def _train(*overrides: str) -> None:
-    _cli("semdp.train", "-m", *overrides)
+    _cli("semdp.cli.train", "-m", *overrides)
 
 
 def read_table(path: Path) -> tuple[list[str], dict[tuple[str, str], list[str]]]:
@@ -74,7 +74,7 @@ def test_preset_ci_sweep_and_report(name: str, tmp_path: Path) -> None:
     _train(f"experiment={name}", "budget=ci", f"hydra.sweep.dir={sweep}", *overrides)
     if name == "transfer":
         _cli("semdp.experiments.transfer", "table", str(sweep))
-    _cli("semdp.report", str(sweep))
+    _cli("semdp.cli.report", str(sweep))
     report = sweep / "report"
     columns, rows = read_table(report / "table.md")
     assert sorted(columns) == sorted(methods)

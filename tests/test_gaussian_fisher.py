@@ -12,8 +12,8 @@ from torch.distributions import Normal, kl_divergence
 from torch.nn.utils import parameters_to_vector
 
 from semdp.algos.fast.gaussian_fisher import GaussianFisher
+from semdp.cli.train import build_algorithm
 from semdp.common.networks import GaussianActor
-from semdp.train import build_algorithm
 
 
 def _autograd_fvp(actor: GaussianActor, obs: torch.Tensor, v: torch.Tensor,

@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 from omegaconf import DictConfig
 
-from semdp.train import run
+from semdp.cli.train import run
 
 GOLDEN = Path(__file__).parent / "data" / "golden"
 

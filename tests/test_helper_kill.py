@@ -33,7 +33,7 @@ pytestmark = pytest.mark.skipif(not Path("/proc/self/comm").exists(),
 
 def _train(run_dir: Path, *overrides: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "semdp.train", *overrides, f"hydra.run.dir={run_dir}"],
+        [sys.executable, "-m", "semdp.cli.train", *overrides, f"hydra.run.dir={run_dir}"],
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 

@@ -181,7 +181,7 @@ def test_library_code_does_not_import_the_apps() -> None:
     semdp.reporting, loads runs with semdp.evaluation, never through an app module (the graph
     counts function-local imports: see the cycle detector's test)."""
     apps = entry_point_modules()
-    assert {"semdp.train", "semdp.eval", "semdp.report"} <= apps
+    assert {"semdp.cli.train", "semdp.cli.eval", "semdp.cli.report"} <= apps
     offenders = {module: sorted(targets & apps)
                  for module, targets in import_graph().items()
                  if module not in apps and targets & apps}

@@ -11,9 +11,9 @@ from omegaconf import DictConfig
 from torch.nn.utils import parameters_to_vector
 
 from semdp.algos.fast.ppo_actor_step import PPOActorStep
+from semdp.cli.train import build_algorithm
 from semdp.common.networks import GaussianActor
 from semdp.common.optim import FlatAdam, clip_grad_norm
-from semdp.train import build_algorithm
 
 
 def _autograd_step(actor: GaussianActor, opt: FlatAdam, obs: torch.Tensor, actions: torch.Tensor,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from semdp.report import main
+from semdp.cli.report import main
 from semdp.reporting.names import algorithm_name, env_name
 from semdp.reporting.plots import aggregate_curves, smooth
 from semdp.reporting.runs import find_run_dirs, load_run, load_runs, mean_and_standard_error

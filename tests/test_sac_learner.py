@@ -27,9 +27,9 @@ from semdp.algos.learner_host import ProcessLearner
 from semdp.algos.replay_shared import FIELDS, SharedReplayBuffer
 from semdp.algos.sac import SAC
 from semdp.algos.twin_q import FusedTwinQ
+from semdp.cli.train import build_algorithm, run
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import TwinQCritic
-from semdp.train import build_algorithm, run
 from solvers.workers import HelperError
 
 #: The tiny SAC of tests/conftest.py with the round loop (16 env steps per round).
@@ -173,7 +173,7 @@ def test_a_dead_learner_process_fails_the_run_instead_of_hanging(
 def test_ctrl_c_on_semdp_train_ends_training_and_learner(tmp_path: Path) -> None:
     """A real SIGINT to ``semdp-train`` (as a terminal's Ctrl-C): the run is recorded as failed
     and no learner process is left behind."""
-    cmd = [sys.executable, "-m", "semdp.train", "algo=sac", "env=speed_limit", "budget=ci",
+    cmd = [sys.executable, "-m", "semdp.cli.train", "algo=sac", "env=speed_limit", "budget=ci",
            "total_steps=200000", "budget.steps_per_epoch=400", "algo.learning_starts=100",
            "algo.batch_size=32", "algo.hidden_sizes=[16,16]", "algo.buffer_size=5000",
            "algo.learner=process", "tensorboard=false", f"hydra.run.dir={tmp_path}"]

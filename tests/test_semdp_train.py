@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from omegaconf import DictConfig
 
-from semdp.train import run
+from semdp.cli.train import run
 
 #: Shrinks a SEMDP preset to seconds: 60 high-level steps, a 2-episode final evaluation.
 TINY_SEMDP = [

@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 def _train(run_dir: Path, *overrides: str) -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "semdp.train", *overrides, f"hydra.run.dir={run_dir}"],
+        [sys.executable, "-m", "semdp.cli.train", *overrides, f"hydra.run.dir={run_dir}"],
         cwd=REPO, text=True, capture_output=True, timeout=600,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]

@@ -13,8 +13,8 @@ import pytest
 from hydra import compose, initialize_config_dir
 from PIL import Image
 
+from semdp.cli.toy import FIGURE_NAME, SUMMARY_NAME, format_table, run
 from semdp.paths import CONF_DIR
-from semdp.toy import FIGURE_NAME, SUMMARY_NAME, format_table, run
 from solvers.self_paced_lagrangian import GLOBAL_OPTIMUM_VALUE, SelfPacedLagrangianToy
 
 PI = math.pi
@@ -83,7 +83,7 @@ def test_toy_run_rejects_non_numeric_start(tmp_path: Path) -> None:
 
 def test_toy_cli_reports_bad_start_in_one_line(tmp_path: Path) -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "semdp.toy", "x0=abc", f"hydra.run.dir={tmp_path}"],
+        [sys.executable, "-m", "semdp.cli.toy", "x0=abc", f"hydra.run.dir={tmp_path}"],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert done.returncode != 0
@@ -101,7 +101,7 @@ def test_toy_cli_reports_bad_start_in_one_line(tmp_path: Path) -> None:
 )
 def test_toy_cli_reports_bad_solver_setting_in_one_line(tmp_path: Path, override, message) -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "semdp.toy", override, f"hydra.run.dir={tmp_path}"],
+        [sys.executable, "-m", "semdp.cli.toy", override, f"hydra.run.dir={tmp_path}"],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert done.returncode != 0
@@ -126,7 +126,7 @@ def test_toy_multirun_with_joblib_launcher(tmp_path: Path) -> None:
     command = [
         sys.executable,
         "-m",
-        "semdp.toy",
+        "semdp.cli.toy",
         "-m",
         "x0=-5,0.3",
         f"hydra.sweep.dir={sweep_dir}",

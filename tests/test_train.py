@@ -18,9 +18,9 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 from semdp.algos.base import POLICY_NAME
 from semdp.algos.ppo import PPOLag
 from semdp.algos.sac import SAC
+from semdp.cli.train import run
 from semdp.common.logger import COMMON_COLUMNS, TIMING_COLUMNS
 from semdp.evaluation.loading import load_trained
-from semdp.train import run
 
 ALGOS = ["ppo", "ppo_lag", "sp_ppo_lag", "trpo", "trpo_lag", "cpo", "sac"]
 
@@ -171,7 +171,7 @@ def test_train_cli_bad_config_is_one_line_without_traceback(tmp_path: Path) -> N
     import sys
 
     done = subprocess.run(
-        [sys.executable, "-m", "semdp.train", "cost_limit=-1", "budget=ci",
+        [sys.executable, "-m", "semdp.cli.train", "cost_limit=-1", "budget=ci",
          f"hydra.run.dir={tmp_path}"],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
@@ -197,7 +197,7 @@ def test_train_resume_of_a_directory_without_checkpoint_fails(
 def test_train_env_wrapper_node_is_applied_to_each_sub_env(
     tiny_train: Callable[..., DictConfig], tmp_path: Path
 ) -> None:
-    from semdp.train import build_algorithm
+    from semdp.cli.train import build_algorithm
 
     rescale = "{_target_: gymnasium.wrappers.RescaleAction, _partial_: true, " \
               "min_action: -0.5, max_action: 0.5}"
@@ -234,7 +234,7 @@ def test_semdp_train_does_not_load_the_planner_for_other_envs() -> None:
     import subprocess
     import sys
 
-    code = ("import sys, semdp.train; "
+    code = ("import sys, semdp.cli.train; "
             "print('casadi' in sys.modules, 'solvers.planner' in sys.modules)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120, check=True)

@@ -168,7 +168,7 @@ def replay_config(cfg: DictConfig, out_dir: Path) -> DictConfig:
 
 def _resume(cfg: DictConfig, run_dir: Path) -> None:
     """Continue the run in ``run_dir`` from its checkpoint under ``cfg``: what
-    ``semdp-train resume=<run_dir>`` does (semdp/train.py), without writing the final
+    ``semdp-train resume=<run_dir>`` does (semdp/cli/train.py), without writing the final
     metrics."""
     validate_config(cfg)
     torch.set_num_threads(int(cfg.get("torch_threads", 1)))

@@ -1,4 +1,4 @@
-"""Tables and figures of ``semdp-report`` (the app is :mod:`semdp.report`): mean ± standard
+"""Tables and figures of ``semdp-report`` (the app is :mod:`semdp.cli.report`): mean ± standard
 error over seeds per method, env and metric, the late-training window, the differences between
 two methods, and the curves and trade-off figures (docs/design.md, "The run directory").
 """
