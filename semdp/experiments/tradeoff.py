@@ -25,7 +25,7 @@ from omegaconf import DictConfig
 from semdp.algos.base import Algorithm
 from semdp.common.logger import write_metrics
 from semdp.evaluation.loading import env_config, load_trained
-from semdp.experiments.evaluation import chain_post_train, evaluate_on
+from semdp.evaluation.variant import chain_post_train, evaluate_on
 
 logger = logging.getLogger(__name__)
 

@@ -28,7 +28,7 @@ from semdp.evaluation.transfer_variant import (
     LAYOUT_SEED,
     transfer_env_config,
 )
-from semdp.experiments.evaluation import chain_post_train, evaluate_on
+from semdp.evaluation.variant import chain_post_train, evaluate_on
 
 logger = logging.getLogger(__name__)
 
