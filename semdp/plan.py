@@ -6,7 +6,8 @@ Examples::
     semdp-plan backends=[ipopt,lm,lm_adaptive,scp] start=[0,0] subgoal=[2,1] \\
         obstacles=[[1,0.3],[0.4,-0.8]]
 
-One planner (``planner=<conf/planner name>``, ``backend=`` overriding its backend): writes
+One planner (``planner=<conf/planner name>``; ``backend=ipopt|lm|scp`` replaces its ``backend``
+node by that backend's defaults, ``planner.backend.<knob>=`` sets one of its knobs): writes
 ``plan.png`` (obstacles with their eps' circles, waypoints, subgoal, certificate) and
 ``plan.json`` (the result). Compare mode (``backends=[...]``, each a ``conf/planner`` name
 composed by Hydra, every ``planner.<key>=`` override applied to each): the same problem solved by
@@ -36,7 +37,7 @@ from semdp.paths import CONF_DIR
 from semdp.plan_plots import plot_comparison, plot_plan
 from solvers.planner import Comparison, Planner, PlanResult, compare
 from solvers.planner.compare import COLUMNS as COMPARE_COLUMNS
-from solvers.planner.problem import validate_obstacles
+from solvers.planner.problem.preparation import validate_obstacles
 
 FIGURE_NAME = "plan.png"
 RESULT_NAME = "plan.json"
@@ -85,7 +86,8 @@ def _instantiate_planner(node: DictConfig, name: str, **overrides: Any) -> Plann
 
 
 def run(cfg: DictConfig, output_dir: Path) -> PlanResult:
-    """Build the planner from ``cfg.planner`` (``cfg.backend`` overrides its backend) and plan."""
+    """Build the planner from ``cfg.planner`` (``cfg.backend``, a backend name, replaces its
+    backend node by that backend's default settings) and plan."""
     overrides = {} if cfg.get("backend") is None else {"backend": str(cfg.backend)}
     obstacles = _obstacles(cfg)
     planner = _instantiate_planner(cfg.planner, "", **overrides)

@@ -118,10 +118,10 @@ def test_semdp_method_picks_label_algorithm_and_env(
         assert cfg.env.wrapper.perception == "gt"
     if method == "ours_wo_lag":
         assert cfg.env.eval_wrapper.planner == cfg.env.wrapper.planner
-        assert cfg.env.eval_wrapper.planner.lm_adaptive is False
+        assert cfg.env.eval_wrapper.planner.backend.adaptive is False
     if method == "ours":
-        assert cfg.env.eval_wrapper.planner.lm_adaptive is True
-        assert cfg.env.wrapper.planner.lm_adaptive is False
+        assert cfg.env.eval_wrapper.planner.backend.adaptive is True
+        assert cfg.env.wrapper.planner.backend.adaptive is False
         assert cfg.env.wrapper.planner.rescue_backend == "ipopt"  # the Car's rescue
 
 

@@ -3,15 +3,24 @@ fallback, bad inputs, settings, batch, configs."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from solvers.planner import PlannerSettings, SafeTrajectoryPlanner, plan_batch, random_problems
+from solvers.planner import (
+    IpoptSettings,
+    LMSettings,
+    PlannerSettings,
+    ProblemSettings,
+    SafeTrajectoryPlanner,
+    SCPSettings,
+    plan_batch,
+    random_problems,
+)
 from solvers.planner.geometry import point_distances, segment_distances
-from solvers.planner.problem import build_gp_prior
-from solvers.planner.settings import setting_names
+from solvers.planner.problem import build_gp_prior, problem_keys
 
 BACKENDS = ["ipopt", "lm", "scp"]
 EPS = 0.5
@@ -23,7 +32,8 @@ def planners() -> dict[tuple[str, bool], SafeTrajectoryPlanner]:
     """One planner per (backend, continuous); LM in the adaptive (evaluation) mode."""
     return {
         (backend, continuous): SafeTrajectoryPlanner(
-            backend=backend, continuous=continuous, lm_adaptive=True
+            backend=LMSettings(adaptive=True) if backend == "lm" else backend,
+            continuous=continuous,
         )
         for backend in BACKENDS
         for continuous in (False, True)
@@ -100,7 +110,7 @@ def test_planner_property_every_waypoint_keeps_clearance_1000(planners, backend,
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_planner_fixed_lambda_lm_is_also_safe(backend) -> None:
-    planner = SafeTrajectoryPlanner(backend=backend, lm_adaptive=False)
+    planner = SafeTrajectoryPlanner(backend=backend)  # LM's default: fixed lambda
     _check_property(planner, random_problems(40, seed=21))
 
 
@@ -160,15 +170,14 @@ CAR_ESCAPE = (
 )
 
 
-@pytest.mark.parametrize("lm_adaptive", [False, True])
-def test_ipopt_rescues_an_lm_escape_plan_that_fails_the_certificate(lm_adaptive) -> None:
+@pytest.mark.parametrize("adaptive", [False, True])
+def test_ipopt_rescues_an_lm_escape_plan_that_fails_the_certificate(adaptive) -> None:
     start, subgoal, obstacles = CAR_ESCAPE
-    plain = SafeTrajectoryPlanner(backend="lm", lm_adaptive=lm_adaptive).plan(
-        start, subgoal, obstacles)
+    lm = LMSettings(adaptive=adaptive)
+    plain = SafeTrajectoryPlanner(backend=lm).plan(start, subgoal, obstacles)
     assert plain.fallback and plain.escape_mode and not plain.rescued
-    result = SafeTrajectoryPlanner(
-        backend="lm", lm_adaptive=lm_adaptive, rescue_backend="ipopt"
-    ).plan(start, subgoal, obstacles)
+    result = SafeTrajectoryPlanner(backend=lm, rescue_backend="ipopt").plan(
+        start, subgoal, obstacles)
     assert result.rescued and not result.fallback and result.escape_mode
     assert result.backend == "lm" and result.status.startswith("rescued by ipopt")
     centres = np.array(obstacles)
@@ -210,13 +219,14 @@ def test_planner_falls_back_when_backend_raises(monkeypatch) -> None:
 def test_planner_lm_adaptive_raises_lambda_until_certified() -> None:
     # a weak obstacle weight: fixed lambda = 1 ends inside the clearance (then shortened), the
     # adaptive mode doubles lambda until the full plan passes the certificate (App. B.2.3)
-    weak = {"backend": "lm", "lm_obstacle_weight": 1.0, "lm_margin": 0.01}
+    weak = LMSettings(obstacle_weight=1.0, margin=0.01)
     start, subgoal = [2.3391915818202227, -1.4057515875805011], [0.36389889695733535, -0.5210884431]
     obstacles = [[3.4636816, -0.8881663], [0.0308653, -0.3905293], [-0.6212173, -3.3086943],
                  [1.8644620, -2.1355353]]
-    fixed = SafeTrajectoryPlanner(**weak).plan(start, subgoal, obstacles)
+    fixed = SafeTrajectoryPlanner(backend=weak).plan(start, subgoal, obstacles)
     assert fixed.status.startswith("solved_shortened") and fixed.multiplier == 1.0
-    result = SafeTrajectoryPlanner(**weak, lm_adaptive=True).plan(start, subgoal, obstacles)
+    adaptive = SafeTrajectoryPlanner(backend=dataclasses.replace(weak, adaptive=True))
+    result = adaptive.plan(start, subgoal, obstacles)
     assert result.multiplier > 1.0 and result.status == "solved" and not result.fallback
     assert result.min_clearance >= EPS
     assert result.objective < fixed.objective
@@ -224,7 +234,7 @@ def test_planner_lm_adaptive_raises_lambda_until_certified() -> None:
 
 def test_planner_lm_repair_shortens_instead_of_falling_back() -> None:
     # a penalty solution without margin always ends slightly inside: it is shortened, not dropped
-    planner = SafeTrajectoryPlanner(backend="lm", lm_margin=0.0)
+    planner = SafeTrajectoryPlanner(backend=LMSettings(margin=0.0))
     result = planner.plan([0.0, 0.0], [2.0, 0.0], [[1.0, 0.0]])
     assert result.status.startswith("solved_shortened")
     assert result.min_clearance >= EPS and not result.fallback
@@ -264,9 +274,9 @@ def test_planner_rejects_bad_input(planners, kwargs, match) -> None:
         ({"clearance": -0.1}, "clearance must be"),
         ({"sigma_smooth": 0.0}, "sigma_smooth must be"),
         ({"n_waypoints": 2}, "n_waypoints must be"),
-        ({"lm_lambda": 2048.0}, "lm_lambda"),
         ({"dt": float("nan")}, "dt must be"),
         ({"rescue_backend": "scp"}, "rescue_backend must be"),
+        ({"backend": {"iterations": 5}}, "backend must be one of"),
     ],
 )
 def test_planner_constructor_rejects_bad_settings(kwargs, match) -> None:
@@ -368,22 +378,30 @@ def test_planner_configs_instantiate(name: str) -> None:
     planner = instantiate(_compose_planner(name))
     assert isinstance(planner, SafeTrajectoryPlanner)
     assert planner.backend == name.split("_")[0]
-    assert planner.lm_adaptive == (name == "lm_adaptive")
+    backend = planner.settings.backend
+    assert isinstance(backend, {"ipopt": IpoptSettings, "lm": LMSettings, "scp": SCPSettings}[
+        planner.backend])
+    assert getattr(backend, "adaptive", False) == (name == "lm_adaptive")
+    # the node is the backend's defaults (and the problem's): the files change no default
+    expected = dataclasses.replace(type(backend)(), adaptive=True) if name == "lm_adaptive" \
+        else type(backend)()
+    assert planner.settings == PlannerSettings(ProblemSettings(), expected)
     assert planner.plan([0, 0], [1, 0], [[0.5, 0.6]]).feasible
 
 
-def test_constructor_keywords_are_exactly_the_settings() -> None:
-    import dataclasses
+def test_constructor_problem_keywords_are_exactly_the_problem_settings() -> None:
     import inspect
 
     parameters = inspect.signature(SafeTrajectoryPlanner.__init__).parameters
-    constructor = {name: p.default for name, p in parameters.items() if name != "self"}
-    settings = {f.name: f.default for f in dataclasses.fields(PlannerSettings)}
-    assert list(constructor) == list(settings) == list(setting_names())
+    constructor = {name: p.default for name, p in parameters.items()
+                   if name not in ("self", "backend", "rescue_backend", "flat")}
+    settings = {f.name: f.default for f in dataclasses.fields(ProblemSettings)}
+    assert list(constructor) == list(settings) == list(problem_keys())
     assert constructor == settings
 
 
-@pytest.mark.parametrize("name", sorted(p.stem for p in CONF_PLANNER.glob("*.yaml")))
+@pytest.mark.parametrize("name", sorted(p.stem for p in CONF_PLANNER.glob("*.yaml")
+                                        if not p.stem.startswith("_")))
 def test_every_conf_planner_key_is_a_constructor_argument(name: str) -> None:
     import inspect
 
@@ -392,46 +410,68 @@ def test_every_conf_planner_key_is_a_constructor_argument(name: str) -> None:
     node = _compose_planner(name)
     parameters = inspect.signature(get_class(node._target_).__init__).parameters
     keys = set(node) - {"_target_"}
-    assert keys <= set(parameters) - {"self"}, sorted(keys - set(parameters))
+    assert keys <= set(parameters) - {"self", "flat"}, sorted(keys - set(parameters))
+    backend = node.get("backend")
+    if backend is not None:  # the backend node holds only its own class's knobs
+        fields = {f.name for f in dataclasses.fields(get_class(backend._target_))}
+        assert set(backend) - {"_target_"} == fields, (name, sorted(backend))
+    if name.startswith(("lm", "ipopt", "scp")):
+        assert not [k for k in node if k.startswith(("lm_", "ipopt_", "scp_"))]
 
 
 @pytest.mark.parametrize(
-    ("kwargs", "match"),
+    ("cls", "kwargs", "match"),
     [
-        ({"continuous": "yes"}, "continuous must be a boolean"),
-        ({"lm_adaptive": 2}, "lm_adaptive must be a boolean"),
-        ({"n_waypoints": 3.5}, "n_waypoints must be an integer >= 3"),
-        ({"lm_iterations": "10"}, "lm_iterations must be an integer"),
-        ({"clearance": "0.5"}, "clearance must be a finite number >= 0"),
-        ({"goal_tolerance": True}, "goal_tolerance must be a finite number > 0"),
-        ({"ipopt_options": ["tol", 1e-6]}, "ipopt_options must be a mapping"),
-        ({"max_obstacles": None}, "max_obstacles must be an integer"),
+        (ProblemSettings, {"continuous": "yes"}, "continuous must be a boolean"),
+        (LMSettings, {"adaptive": 2}, "adaptive must be a boolean"),
+        (ProblemSettings, {"n_waypoints": 3.5}, "n_waypoints must be an integer >= 3"),
+        (LMSettings, {"iterations": "10"}, "iterations must be an integer"),
+        (ProblemSettings, {"clearance": "0.5"}, "clearance must be a finite number >= 0"),
+        (ProblemSettings, {"goal_tolerance": True}, "goal_tolerance must be a finite number > 0"),
+        (IpoptSettings, {"options": ["tol", 1e-6]}, "options must be a mapping"),
+        (ProblemSettings, {"max_obstacles": None}, "max_obstacles must be an integer"),
+        (LMSettings, {"lambda_": 2048.0}, r"lambda_ \(2048.0\) must be <= lambda_max"),
+        (LMSettings, {"margin": -0.01}, "margin must be a finite number >= 0"),
+        (IpoptSettings, {"first_max_iter": -1}, "first_max_iter must be an integer >= 0"),
+        (SCPSettings, {"trust_region": 0.0}, "trust_region must be a finite number > 0"),
+        (SCPSettings, {"max_iterations": 0}, "max_iterations must be an integer >= 1"),
     ],
 )
-def test_settings_reject_wrong_types(kwargs, match) -> None:
+def test_settings_reject_wrong_types(cls, kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
-        PlannerSettings(**kwargs)
-    with pytest.raises(ValueError, match=match):
-        SafeTrajectoryPlanner(**kwargs)
+        cls(**kwargs)
+    with pytest.raises(ValueError, match=match):  # through the planner, as Hydra builds it
+        if cls is ProblemSettings:
+            SafeTrajectoryPlanner(**kwargs)
+        else:
+            SafeTrajectoryPlanner(backend=cls(**kwargs))
 
 
 def test_settings_are_frozen_normalised_and_rebuild_the_planner() -> None:
-    import dataclasses
-
-    settings = PlannerSettings(backend="lm", n_waypoints=np.int64(20), continuous=np.bool_(True),
-                               ipopt_options={"tol": 1e-6})
-    assert type(settings.n_waypoints) is int and settings.continuous is True
-    assert PlannerSettings(**settings.to_kwargs()) == settings
-    assert hash(settings) == hash(PlannerSettings(**settings.to_kwargs()))
+    problem = ProblemSettings(n_waypoints=np.int64(20), continuous=np.bool_(True))
+    settings = PlannerSettings(problem, LMSettings(iterations=np.int64(5)),
+                               rescue=IpoptSettings(options={"tol": 1e-6}))
+    assert type(problem.n_waypoints) is int and problem.continuous is True
+    assert type(settings.backend.iterations) is int and settings.rescue_backend == "ipopt"
+    rebuilt = PlannerSettings(dataclasses.replace(problem), dataclasses.replace(settings.backend),
+                              IpoptSettings(options={"tol": 1e-6}))
+    assert rebuilt == settings and hash(rebuilt) == hash(settings)
     with pytest.raises(dataclasses.FrozenInstanceError):
-        settings.clearance = 0.6  # type: ignore[misc]
+        problem.clearance = 0.6  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        settings.backend.iterations = 3  # type: ignore[misc]
     planner = SafeTrajectoryPlanner.from_settings(settings)
     assert planner.settings is settings and planner.n_waypoints == 20 and planner.continuous
-    assert planner.solver.context.prior.n_waypoints == 20
-    assert PlannerSettings(rescue_backend="ipopt").rescue_backend is None  # nothing to rescue
+    assert planner.solver.context.prior.n_waypoints == 20 and planner.backend == "lm"
+    assert planner.rescue_solver.options["tol"] == 1e-6
+    # nothing to rescue an IPOPT plan with; a name gives the backend's defaults
+    assert PlannerSettings(backend="ipopt", rescue="ipopt").rescue is None
+    assert PlannerSettings(backend="scp").backend == SCPSettings()
     with pytest.raises(AttributeError, match="read-only"):
         planner.clearance = 0.6
-    same = SafeTrajectoryPlanner(**settings.to_kwargs())
+    same = SafeTrajectoryPlanner(backend=settings.backend, rescue_backend=settings.rescue,
+                                 **dataclasses.asdict(problem))
+    assert same.settings == settings
     a = planner.plan([0, 0], [1.5, 0.5], [[0.8, 0.2]])
     b = same.plan([0, 0], [1.5, 0.5], [[0.8, 0.2]])
     np.testing.assert_array_equal(a.waypoints, b.waypoints)

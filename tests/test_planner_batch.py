@@ -1,4 +1,4 @@
-"""``plan_batch`` with helper processes (solvers/planner/batching.py, batch.py): the
+"""``plan_batch`` with helper processes (solvers/planner/batch/): the
 plans equal a loop of ``plan`` calls for every backend, including empty, over-full and escape-mode
 problems; bad inputs, a dead helper and pickling."""
 
@@ -13,18 +13,19 @@ import numpy as np
 import pytest
 
 from solvers.planner import (
+    LMSettings,
     SafeTrajectoryPlanner,
     plan_batch,
     random_problems,
     start_batch_workers,
 )
-from solvers.planner import batch as batch_module
-from solvers.planner.batching import batch_config
+from solvers.planner.batch import pool as batch_module
+from solvers.planner.batch.planning import batch_config
 
 VARIANTS = {
     "ipopt": {"backend": "ipopt"},
     "lm": {"backend": "lm"},
-    "lm_adaptive": {"backend": "lm", "lm_adaptive": True},
+    "lm_adaptive": {"backend": LMSettings(adaptive=True)},
     "scp": {"backend": "scp"},
 }
 MAX_OBSTACLES = 4  # few compiled slot counts: quick to build, and easy to exceed

@@ -154,3 +154,35 @@ def test_plans_sha256_hashes_waypoints_and_flags_in_order() -> None:
     assert planner_bench.plans_sha256([plans[0], result(1.0, "max_iter")]) != digest
     times_differ = [dataclasses.replace(p, solve_time_s=9.0) for p in plans]
     assert planner_bench.plans_sha256(times_differ) == digest
+
+
+def test_plan_compare_reports_clearance_and_smoothness_budget_per_backend(tmp_path: Path) -> None:
+    """``semdp-plan backends=[ipopt,lm] start=[0,0] subgoal=[2.5,1]
+    obstacles=[[1,0.3],[0.4,-0.8],[1.8,1.2]]``: per backend the clearance and h_smooth against
+    its budget sigma (Eq. 3.6); LM keeps the budget only as a penalty and exceeds it here."""
+    cfg = OmegaConf.create({"backends": ["ipopt", "lm"], "backend": None, "start": [0, 0],
+                            "subgoal": [2.5, 1], "obstacles": [[1, 0.3], [0.4, -0.8], [1.8, 1.2]],
+                            "repeats": 1, "plot": False})
+    comparison = plan_app.run_compare(cfg, tmp_path)
+    table = comparison.table()
+    assert "h_smooth / σ" in table and "min clearance waypoints (m)" in table
+    ipopt, lm = comparison["ipopt"], comparison["lm"]
+    assert ipopt.within_budget and not lm.within_budget and "(over, ×" in table
+    with open(tmp_path / "compare.csv", newline="") as handle:
+        rows = {row["name"]: row for row in csv.DictReader(handle)}
+    for name in ("ipopt", "lm"):
+        assert float(rows[name]["min_clearance"]) >= 0.5 - 1e-9
+        assert float(rows[name]["smoothness_budget"]) == 0.048
+    assert rows["ipopt"]["within_budget"] == "True" and rows["lm"]["within_budget"] == "False"
+
+
+def test_plan_backend_node_knobs_are_overridable_and_validated(tmp_path: Path) -> None:
+    node = plan_app.compose_planner("lm", ["backend.iterations=3", "backend.adaptive=true"])
+    assert node.backend.iterations == 3 and node.backend.adaptive is True
+    bad = plan_app.compose_planner("scp", ["backend.trust_region=0"])
+    cfg = OmegaConf.create({"planner": bad, "backend": None, "start": [0, 0],
+                            "subgoal": [1, 0], "obstacles": [], "plot": False})
+    with pytest.raises(ValueError, match=r"^planner: trust_region must be a finite number > 0"):
+        plan_app.run(cfg, tmp_path)
+    with pytest.raises(ValueError, match="planner lm"):  # a knob of another backend
+        plan_app.compose_planner("lm", ["backend.trust_region=0.5"])

@@ -125,6 +125,6 @@ def test_comparison_reports_the_smoothness_budget_each_backend_keeps() -> None:
     assert "(over, ×" in comparison.table() and lm.record()["within_budget"] is False
     for row in (ipopt, lm):
         result = row.result
-        dt = SafeTrajectoryPlanner().settings.dt
+        dt = SafeTrajectoryPlanner().dt
         assert math.isclose(row.smoothness, _gp_smoothness(result.waypoints, result.velocities, dt),
                             rel_tol=1e-9)

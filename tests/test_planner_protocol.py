@@ -1,5 +1,6 @@
 """Every planner satisfies the ``Planner`` protocol (solvers/planner/protocol.py), every backend
-the ``Backend`` protocol, and the straight-line ablation planner refuses a rescue."""
+the ``Backend`` protocol (solvers/planner/backends/base.py), and the straight-line ablation
+planner refuses a rescue."""
 
 from __future__ import annotations
 
@@ -7,13 +8,13 @@ import numpy as np
 import pytest
 
 from semdp.embedded.straight import StraightLinePlanner
-from solvers.planner import Planner, PlanResult, SafeTrajectoryPlanner
-from solvers.planner.backend import Backend
+from solvers.planner import LMSettings, Planner, PlanResult, SafeTrajectoryPlanner
+from solvers.planner.backends import Backend
 
 PLANNERS = {
     "ipopt": lambda: SafeTrajectoryPlanner(backend="ipopt"),
     "lm": lambda: SafeTrajectoryPlanner(backend="lm"),
-    "lm_adaptive": lambda: SafeTrajectoryPlanner(backend="lm", lm_adaptive=True),
+    "lm_adaptive": lambda: SafeTrajectoryPlanner(backend=LMSettings(adaptive=True)),
     "scp": lambda: SafeTrajectoryPlanner(backend="scp"),
     "lm+rescue": lambda: SafeTrajectoryPlanner(backend="lm", rescue_backend="ipopt"),
     "straight": lambda: StraightLinePlanner(),

@@ -17,7 +17,7 @@ from semdp.embedded.straight import StraightLinePlanner
 from semdp.embedded.tracking import ego_to_world, select_tracking_index, world_to_ego
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
 from semdp.envs import make_env
-from solvers.planner import SafeTrajectoryPlanner
+from solvers.planner import LMSettings, SafeTrajectoryPlanner
 
 CLEARANCE = 0.5
 
@@ -36,7 +36,7 @@ class RecordingFollower:
 
 
 def _semdp(env_id: str = "sims/SafetyMassPush1-v0", **kwargs) -> SafetyEmbeddedEnv:
-    kwargs.setdefault("planner", SafeTrajectoryPlanner(backend="lm", lm_adaptive=True))
+    kwargs.setdefault("planner", SafeTrajectoryPlanner(backend=LMSettings(adaptive=True)))
     kwargs.setdefault("follower", ProportionalFollower(gain=8.0))
     return SafetyEmbeddedEnv(gym.make(env_id), **kwargs)
 

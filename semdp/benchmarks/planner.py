@@ -31,7 +31,10 @@ import numpy as np
 from semdp.benchmarks.arguments import as_int, as_list, parse_args
 from semdp.paths import REPO_ROOT
 from solvers.planner import (
+    IpoptSettings,
+    LMSettings,
     SafeTrajectoryPlanner,
+    SCPSettings,
     plan_batch,
     random_problems,
     start_batch_workers,
@@ -52,11 +55,12 @@ def plans_sha256(results: list) -> str:
         digest.update(("|".join(str(f) for f in flags) + "\n").encode())
     return digest.hexdigest()
 
-VARIANTS: dict[str, dict[str, object]] = {
-    "ipopt": {"backend": "ipopt"},
-    "lm": {"backend": "lm", "lm_iterations": 10, "lm_adaptive": False},
-    "lm_adaptive": {"backend": "lm", "lm_iterations": 10, "lm_adaptive": True},
-    "scp": {"backend": "scp"},
+#: The backend settings of each variant (the problem's settings are the defaults).
+VARIANTS: dict[str, IpoptSettings | LMSettings | SCPSettings] = {
+    "ipopt": IpoptSettings(),
+    "lm": LMSettings(iterations=10, adaptive=False),
+    "lm_adaptive": LMSettings(iterations=10, adaptive=True),
+    "scp": SCPSettings(),
 }
 
 
@@ -73,7 +77,7 @@ def _variant_kwargs(name: str) -> dict[str, object]:
     if base not in VARIANTS:
         valid = [*VARIANTS, *(f"{v}_cont" for v in VARIANTS)]
         raise SystemExit(f"unknown backend variant {name!r}; valid: {valid}")
-    return dict(VARIANTS[base], continuous=name.endswith("_cont"))
+    return {"backend": VARIANTS[base], "continuous": name.endswith("_cont")}
 
 
 def main(argv: list[str]) -> None:

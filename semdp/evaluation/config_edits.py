@@ -2,16 +2,23 @@
 
 The saved config of a Safety-Embedded MDP run holds its evaluation wrapper as
 ``env.eval_wrapper`` with the planner as a full ``conf/planner`` node (``_target_``, ``backend``,
-``lm_adaptive``, ``clearance``, ...) and the follower as a node of the robot's
+``clearance``, ``rescue_backend``, ...) and the follower as a node of the robot's
 ``conf/robot/<robot>.yaml`` (semdp/README.md, "The Safety-Embedded MDP"). The shorthands edit
 that node:
 
 - ``planner=<name>``: ``conf/planner/<name>.yaml`` composed with Hydra's compose API; the run's
   ``clearance`` is kept, and its ``rescue_backend`` too when the planner class is the same;
 - ``clearance=<eps'>``: the planner's ``clearance``;
-- ``lambda=fixed|adaptive``: ``lm_adaptive`` of an LM planner (thesis App. B.2.3);
+- ``lambda=fixed|adaptive``: ``backend.adaptive`` of an LM planner (``lm_adaptive`` of a flat
+  node; thesis App. B.2.3);
 - ``perception=lidar|lidar_refined|gt``: the wrapper's ``perception`` (the filter keeps its
   own).
+
+A planner node holds the problem's keys (``clearance``, ...), ``rescue_backend`` and a
+``backend`` node with its own ``_target_`` (``solvers.planner.LMSettings`` with ``adaptive``, ...);
+runs saved before the planner's settings were split hold one flat node instead (``backend: lm``,
+``lm_adaptive``, ``lm_iterations``, ...), which the planner still accepts
+(``solvers.planner.settings.PlannerSettings.from_flat``) and the shorthands edit as it is.
 
 Runs saved before the planner and follower became nodes (``planner: lm_adaptive`` with
 ``planner_kwargs``, ``follower: auto`` or a follower name ``<robot>`` / ``<robot>_ppo_lag``) are
@@ -30,6 +37,7 @@ from semdp.evaluation.errors import EvalError
 from semdp.evaluation.options import SHORTHANDS, EvalOptions
 
 SEMDP_TARGET = "semdp.embedded.wrapper.SafetyEmbeddedEnv"
+LM_SETTINGS_TARGET = "solvers.planner.LMSettings"
 _ABSENT = object()
 
 
@@ -121,12 +129,19 @@ def set_clearance(cfg: DictConfig, clearance: float) -> None:
 
 
 def set_lambda(cfg: DictConfig, mode: str) -> None:
-    """``lambda=fixed|adaptive`` on an LM evaluation planner."""
+    """``lambda=fixed|adaptive`` on an LM evaluation planner (a ``backend`` node of
+    ``LMSettings``, or a flat node saved before the planner's settings were split)."""
     node = _planner(cfg, "lambda")
-    if "lm_adaptive" not in node or node.get("backend") != "lm":
+    backend = node.get("backend")
+    adaptive = mode == "adaptive"
+    if OmegaConf.is_dict(backend) and str(backend.get("_target_", "")) == LM_SETTINGS_TARGET:
+        backend.adaptive = adaptive
+    elif backend == "lm" and "lm_adaptive" in node:  # flat node
+        node.lm_adaptive = adaptive
+    else:
+        kind = backend.get("_target_") if OmegaConf.is_dict(backend) else backend
         raise EvalError(f"lambda= needs the LM planner; the evaluation planner is "
-                        f"{node.get('_target_')} with backend {node.get('backend')!r}")
-    node.lm_adaptive = mode == "adaptive"
+                        f"{node.get('_target_')} with backend {kind!r}")
 
 
 def apply_overrides(cfg: DictConfig, options: EvalOptions) -> None:

@@ -25,11 +25,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from solvers.planner.backends import BACKENDS
 from solvers.planner.planner import SafeTrajectoryPlanner
-from solvers.planner.problem import validate_obstacles, validate_point
+from solvers.planner.problem.preparation import validate_obstacles, validate_point
 from solvers.planner.protocol import Planner
 from solvers.planner.result import PlanResult
-from solvers.planner.settings import BACKENDS
 
 #: Columns of :meth:`Comparison.records` (and of ``semdp-plan``'s CSV), in order.
 COLUMNS: tuple[str, ...] = (
@@ -203,8 +203,9 @@ def compare_backends(
     repeats: int = 3,
     **settings: object,
 ) -> Comparison:
-    """:func:`compare` with one :class:`SafeTrajectoryPlanner` per backend name, all with the
-    same other ``settings`` (constructor keywords, e.g. ``continuous=True``).
+    """:func:`compare` with one :class:`SafeTrajectoryPlanner` per backend name (its default
+    settings), all with the same other ``settings`` (constructor keywords of the problem and the
+    rescue, e.g. ``continuous=True``).
 
     Raises:
         ValueError: An unknown backend, a bad setting, or what :func:`compare` rejects.

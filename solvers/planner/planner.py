@@ -1,14 +1,15 @@
 """``SafeTrajectoryPlanner``: the safe trajectory optimiser of thesis §3.5.2 behind one interface.
 
-Three backends solve the same problem (Eqs. 3.3-3.7): ``ipopt`` (hard pairwise constraints),
-``lm`` (the thesis' penalty form, Eq. 3.8, with Levenberg-Marquardt; fixed or adaptive lambda,
-App. B.2.3) and ``scp`` (convex QPs on OSQP with tangent half-spaces). A plan goes through four
-steps, each in its own module: validate and select the obstacles (:mod:`.context`), solve
-(:mod:`.ipopt_backend`, :mod:`.lm_backend`, :mod:`.scp_backend`), optionally rescue a rejected
-plan with IPOPT, and certify (:mod:`.certificate`): every result, whatever the backend, is
-checked against every obstacle given, and a plan that fails the check is replaced by the
-stationary trajectory (thesis §3.5.2: it is feasible whenever the start is) and flagged as a
-fallback. Many problems at once: :func:`solvers.planner.batching.plan_batch`.
+Three backends solve the same problem (Eqs. 3.3-3.7, :mod:`solvers.planner.problem`): IPOPT
+(hard pairwise constraints), LM (the thesis' penalty form, Eq. 3.8, with Levenberg-Marquardt;
+fixed or adaptive lambda, App. B.2.3) and SCP (convex QPs on OSQP with tangent half-spaces), each
+in its own module of :mod:`solvers.planner.backends` with its own settings. A plan goes through
+four steps: validate and select the obstacles (:mod:`.problem.preparation`), solve (the
+backend), optionally rescue a rejected plan with IPOPT, and certify (:mod:`.problem.certificate`):
+every result, whatever the backend, is checked against every obstacle given, and a plan that
+fails the check is replaced by the stationary trajectory (thesis §3.5.2: it is feasible whenever
+the start is) and flagged as a fallback. Many problems at once:
+:func:`solvers.planner.batch.plan_batch`.
 """
 
 from __future__ import annotations
@@ -21,14 +22,16 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from solvers.planner.backend import Backend, Iterate
-from solvers.planner.context import PlanningContext
-from solvers.planner.ipopt_backend import IpoptBackend
-from solvers.planner.lm_backend import LMBackend
-from solvers.planner.problem import GPPrior, PreparedProblem, bucket_size, join
+from solvers.planner.backends.base import Backend, bucket_size
+from solvers.planner.backends.ipopt import IpoptBackend, IpoptSettings
+from solvers.planner.legacy_pickles import legacy_context
+from solvers.planner.problem.certificate import Iterate
+from solvers.planner.problem.context import ProblemContext
+from solvers.planner.problem.gp_prior import GPPrior, join
+from solvers.planner.problem.preparation import PreparedProblem
+from solvers.planner.problem.settings import ProblemSettings
 from solvers.planner.result import PlanResult
-from solvers.planner.scp_backend import ScpBackend
-from solvers.planner.settings import PlannerSettings
+from solvers.planner.settings import FLAT_BACKEND_KEYS, AnyBackendSettings, PlannerSettings
 from solvers.planner.warm_start import WarmStartMemory
 
 logger = logging.getLogger(__name__)
@@ -36,8 +39,9 @@ logger = logging.getLogger(__name__)
 T = TypeVar("T")
 
 
-class _Setting(Generic[T]):
-    """A read-only view of one setting: ``planner.clearance`` is ``planner.settings.clearance``."""
+class _ProblemSetting(Generic[T]):
+    """A read-only view of one problem setting: ``planner.clearance`` is
+    ``planner.settings.problem.clearance``."""
 
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
@@ -45,71 +49,63 @@ class _Setting(Generic[T]):
     def __get__(self, planner: SafeTrajectoryPlanner | None, owner: type | None = None) -> T:
         if planner is None:
             return self  # type: ignore[return-value]
-        return getattr(planner.settings, self.name)  # type: ignore[no-any-return]
+        return getattr(planner.settings.problem, self.name)  # type: ignore[no-any-return]
 
     def __set__(self, planner: SafeTrajectoryPlanner, value: object) -> None:
         raise AttributeError(
             f"planner settings are read-only ({self.name}); build a new planner, e.g. "
-            f"SafeTrajectoryPlanner(**{{**planner.settings.to_kwargs(), {self.name!r}: ...}})"
+            f"SafeTrajectoryPlanner.from_settings(dataclasses.replace(planner.settings, "
+            f"problem=dataclasses.replace(planner.settings.problem, {self.name}=...)))"
         )
-
-
-def build_backend(context: PlanningContext) -> Backend:
-    """The backend named by ``context.settings.backend``."""
-    name = context.settings.backend
-    if name == "ipopt":
-        return IpoptBackend(context)
-    if name == "lm":
-        return LMBackend(context)
-    return ScpBackend(context)
 
 
 class SafeTrajectoryPlanner:
     """Plan N waypoints from a start towards a subgoal that keep eps' from every obstacle.
 
-    The keyword arguments are those of :class:`~solvers.planner.settings.PlannerSettings`,
-    where each is documented (and the keys of ``conf/planner/*.yaml``); they are validated there
-    (``ValueError`` for a bad value) and readable here as attributes (``planner.clearance``).
+    Args:
+        backend: The backend's settings (:class:`~solvers.planner.backends.ipopt.IpoptSettings`,
+            :class:`~solvers.planner.backends.lm.LMSettings`,
+            :class:`~solvers.planner.backends.scp.SCPSettings`; a ``conf/planner`` file's
+            ``backend:`` node) or a backend name (``"ipopt"``, ``"lm"``, ``"scp"``: its
+            defaults).
+        n_waypoints, clearance, max_obstacles, dt, sigma_smooth, smooth_weight, continuous,
+            goal_tolerance, feasibility_margin: The problem's settings, documented in
+            :class:`~solvers.planner.problem.settings.ProblemSettings` (readable here as
+            attributes: ``planner.clearance``).
+        rescue_backend: None or ``"ipopt"`` (or IPOPT settings): see
+            :class:`~solvers.planner.settings.PlannerSettings`.
+        **flat: The backend keys of runs saved before the settings were split (``lm_adaptive``,
+            ``ipopt_max_iter``, ...; ``backend`` must then be a name): converted by
+            :meth:`PlannerSettings.from_flat`.
+
+    Raises:
+        ValueError: A bad setting (the message names the key and the value).
+        TypeError: An unknown keyword.
 
     Attributes:
         settings: The validated settings (read-only; build a new planner to change them).
-        context: GP prior, reach and certificate derived from the settings.
+        context: GP prior, reach and certificate derived from the problem's settings.
         solver: The backend.
-        rescue_solver: IPOPT when ``rescue_backend="ipopt"`` and the backend is LM or SCP.
+        rescue_solver: IPOPT when a rescue is set and the backend is LM or SCP.
         memory: The previous plan, for the warm start.
 
     A planner pickles without its compiled solvers (each backend drops them and rebuilds them
     lazily), so it can be sent to vectorised-environment worker processes.
     """
 
-    backend = _Setting[str]()
-    n_waypoints = _Setting[int]()
-    clearance = _Setting[float]()
-    max_obstacles = _Setting[int]()
-    dt = _Setting[float]()
-    sigma_smooth = _Setting[float]()
-    smooth_weight = _Setting[float]()
-    continuous = _Setting[bool]()
-    goal_tolerance = _Setting[float]()
-    feasibility_margin = _Setting[float]()
-    lm_iterations = _Setting[int]()
-    lm_lambda = _Setting[float]()
-    lm_adaptive = _Setting[bool]()
-    lm_lambda_max = _Setting[float]()
-    lm_obstacle_weight = _Setting[float]()
-    lm_budget_weight = _Setting[float]()
-    lm_margin = _Setting[float]()
-    lm_damping = _Setting[float]()
-    ipopt_max_iter = _Setting[int]()
-    ipopt_first_max_iter = _Setting[int]()
-    ipopt_options = _Setting[dict[str, object]]()
-    scp_max_iterations = _Setting[int]()
-    scp_trust_region = _Setting[float]()
-    rescue_backend = _Setting[str | None]()
+    n_waypoints = _ProblemSetting[int]()
+    clearance = _ProblemSetting[float]()
+    max_obstacles = _ProblemSetting[int]()
+    dt = _ProblemSetting[float]()
+    sigma_smooth = _ProblemSetting[float]()
+    smooth_weight = _ProblemSetting[float]()
+    continuous = _ProblemSetting[bool]()
+    goal_tolerance = _ProblemSetting[float]()
+    feasibility_margin = _ProblemSetting[float]()
 
     def __init__(
         self,
-        backend: str = "ipopt",
+        backend: AnyBackendSettings | str = "ipopt",
         n_waypoints: int = 30,
         clearance: float = 0.5,
         max_obstacles: int = 16,
@@ -119,32 +115,20 @@ class SafeTrajectoryPlanner:
         continuous: bool = False,
         goal_tolerance: float = 0.05,
         feasibility_margin: float = 1e-5,
-        lm_iterations: int = 10,
-        lm_lambda: float = 1.0,
-        lm_adaptive: bool = False,
-        lm_lambda_max: float = 1024.0,
-        lm_obstacle_weight: float = 1000.0,
-        lm_budget_weight: float = 100.0,
-        lm_margin: float = 0.02,
-        lm_damping: float = 1e-4,
-        ipopt_max_iter: int = 200,
-        ipopt_first_max_iter: int = 30,
-        ipopt_options: dict[str, object] | None = None,
-        scp_max_iterations: int = 30,
-        scp_trust_region: float = 1.0,
-        rescue_backend: str | None = None,
+        rescue_backend: IpoptSettings | str | None = None,
+        **flat: object,
     ) -> None:
+        problem = {
+            "n_waypoints": n_waypoints, "clearance": clearance, "max_obstacles": max_obstacles,
+            "dt": dt, "sigma_smooth": sigma_smooth, "smooth_weight": smooth_weight,
+            "continuous": continuous, "goal_tolerance": goal_tolerance,
+            "feasibility_margin": feasibility_margin,
+        }
+        if flat:
+            self._build(_flat_settings(backend, problem, rescue_backend, flat))
+            return
         self._build(PlannerSettings(
-            backend=backend, n_waypoints=n_waypoints, clearance=clearance,
-            max_obstacles=max_obstacles, dt=dt, sigma_smooth=sigma_smooth,
-            smooth_weight=smooth_weight, continuous=continuous, goal_tolerance=goal_tolerance,
-            feasibility_margin=feasibility_margin, lm_iterations=lm_iterations,
-            lm_lambda=lm_lambda, lm_adaptive=lm_adaptive, lm_lambda_max=lm_lambda_max,
-            lm_obstacle_weight=lm_obstacle_weight, lm_budget_weight=lm_budget_weight,
-            lm_margin=lm_margin, lm_damping=lm_damping, ipopt_max_iter=ipopt_max_iter,
-            ipopt_first_max_iter=ipopt_first_max_iter, ipopt_options=ipopt_options,
-            scp_max_iterations=scp_max_iterations, scp_trust_region=scp_trust_region,
-            rescue_backend=rescue_backend,
+            ProblemSettings(**problem), backend, rescue_backend  # type: ignore[arg-type]
         ))
 
     @classmethod
@@ -154,14 +138,25 @@ class SafeTrajectoryPlanner:
         planner._build(settings)
         return planner
 
-    def _build(self, settings: PlannerSettings) -> None:
+    def _build(self, settings: PlannerSettings, context: ProblemContext | None = None) -> None:
         self.settings = settings
-        self.context = PlanningContext(settings)
-        self.solver: Backend = build_backend(self.context)
+        self.context = context if context is not None else ProblemContext(settings.problem)
+        self.solver: Backend = settings.backend.build(self.context)
         self.rescue_solver: IpoptBackend | None = (
-            IpoptBackend(self.context) if settings.rescue_backend == "ipopt" else None
+            None if settings.rescue is None else settings.rescue.build(self.context)
         )
-        self.memory = WarmStartMemory(settings.dt)
+        self.memory = WarmStartMemory(settings.problem.dt)
+
+    @property
+    def backend(self) -> str:
+        """The backend's name (``"ipopt"``, ``"lm"``, ``"scp"``); its settings are
+        ``settings.backend``."""
+        return self.settings.backend.name
+
+    @property
+    def rescue_backend(self) -> str | None:
+        """``"ipopt"`` when plans the certificate rejects are rescued, else None."""
+        return self.settings.rescue_backend
 
     @property
     def prior(self) -> GPPrior:
@@ -203,7 +198,7 @@ class SafeTrajectoryPlanner:
             ValueError: Non-finite or wrongly shaped inputs, or negative radii.
         """
         tic = time.perf_counter()
-        prep = self.context.prepare(start, subgoal, obstacles)
+        prep = self.context.prepare(start, subgoal, obstacles, reach=self.solver.selection_reach)
         warm = self.memory.guess(prep) if warm_start else None
         try:
             plan = self.solver.solve(prep, warm)
@@ -217,7 +212,7 @@ class SafeTrajectoryPlanner:
         result = dataclasses.replace(
             result, smoothness=self.prior.smoothness(join(result.waypoints - prep.start,
                                                           result.velocities)),
-            smoothness_budget=self.settings.sigma_smooth)
+            smoothness_budget=self.sigma_smooth)
         self.memory.remember(prep.start, prep.start + prep.goal, result.waypoints)
         return result
 
@@ -246,5 +241,38 @@ class SafeTrajectoryPlanner:
         return Iterate(rescue.z, f"rescued by ipopt ({failed.status}): {rescue.status}",
                        iterations, rescued=True)
 
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self) -> dict[str, object]:
+        """The settings, the problem's context (its GP prior as computed here) and the warm-start
+        memory; the backends are rebuilt on unpickling, without compiled solvers."""
+        return {"settings": self.settings, "context": self.context, "memory": self.memory}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        settings = state["settings"]
+        assert isinstance(settings, PlannerSettings)
+        context = state["context"]
+        if not isinstance(context, ProblemContext):  # pickled before the settings were split
+            context = legacy_context(context, settings.problem)
+        self._build(settings, context)
+        self.memory = state["memory"]  # type: ignore[assignment]
+
     def __repr__(self) -> str:
         return f"SafeTrajectoryPlanner({self.settings!r})"
+
+
+def _flat_settings(
+    backend: object, problem: dict[str, object], rescue: object, flat: dict[str, object]
+) -> PlannerSettings:
+    """The constructor's legacy path: flat backend keywords through
+    :meth:`PlannerSettings.from_flat`."""
+    unknown = sorted(set(flat) - set(FLAT_BACKEND_KEYS))
+    if unknown:
+        raise TypeError(f"SafeTrajectoryPlanner got unexpected keyword arguments {unknown}")
+    if not isinstance(backend, str):
+        raise ValueError(f"the flat backend keys {sorted(flat)} need the backend as a name "
+                         f"(ipopt, lm, scp), got {backend!r}; give them in its settings object")
+    if rescue is not None and not isinstance(rescue, str):
+        raise ValueError(f"the flat backend keys {sorted(flat)} need rescue_backend None or "
+                         f"'ipopt', got {rescue!r}")
+    return PlannerSettings.from_flat(
+        {"backend": backend, **problem, "rescue_backend": rescue, **flat})

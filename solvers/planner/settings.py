@@ -1,175 +1,151 @@
-"""The planner's settings: one frozen, validated object (thesis §3.5.2, App. B.2.3).
+"""The planner's settings: the problem's, one backend's and the rescue's (thesis §3.5.2).
 
-:class:`PlannerSettings` holds exactly the constructor keywords of
-:class:`solvers.planner.SafeTrajectoryPlanner` (and so the keys of ``conf/planner/*.yaml``). It
-checks every value once, when it is built, and raises ``ValueError`` naming the offending key
-and value; the planner and its backends then read it without further checks.
+:class:`PlannerSettings` is what a :class:`solvers.planner.SafeTrajectoryPlanner` is built from:
+a :class:`~solvers.planner.problem.settings.ProblemSettings` (Eqs. 3.3-3.7), the settings of
+exactly one backend (:class:`~solvers.planner.backends.ipopt.IpoptSettings`,
+:class:`~solvers.planner.backends.lm.LMSettings` or
+:class:`~solvers.planner.backends.scp.SCPSettings`) and, optionally, the IPOPT settings of the
+rescue. Each part validates itself when built (``ValueError`` naming the key and the value).
+
+Runs saved before the settings were split hold one flat node (``backend: lm``,
+``lm_iterations: 10``, ``ipopt_max_iter: 200``, ...) in their ``config.yaml``, and their
+checkpoints pickle the flat settings object: :meth:`PlannerSettings.from_flat` is the one place
+that converts those (the planner's constructor and unpickling both use it).
 """
 
 from __future__ import annotations
 
-import math
-import numbers
-from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field, fields
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
-import numpy as np
+from solvers.planner.backends import BACKEND_SETTINGS, BACKENDS
+from solvers.planner.backends.ipopt import IpoptSettings
+from solvers.planner.backends.lm import LMSettings
+from solvers.planner.backends.scp import SCPSettings
+from solvers.planner.problem.settings import ProblemSettings, problem_keys
+from solvers.planner.validation import set_field
 
-#: Names of the solver backends.
-BACKENDS: tuple[str, ...] = ("ipopt", "lm", "scp")
-#: Backends that can rescue a plan the certificate rejects (None: no rescue).
-RESCUE_BACKENDS: tuple[str | None, ...] = (None, "ipopt")
+#: The settings of one backend.
+AnyBackendSettings = IpoptSettings | LMSettings | SCPSettings
 
-_POSITIVE = (
-    "dt", "sigma_smooth", "lm_lambda", "lm_lambda_max", "lm_obstacle_weight", "lm_budget_weight",
-    "lm_damping", "scp_trust_region", "goal_tolerance",
-)
-_NON_NEGATIVE = ("clearance", "smooth_weight", "feasibility_margin", "lm_margin")
-#: Integer settings and their least allowed value.
-_COUNTS = {
-    "n_waypoints": 3, "max_obstacles": 1, "lm_iterations": 1, "ipopt_max_iter": 1,
-    "ipopt_first_max_iter": 0, "scp_max_iterations": 1,
+#: The flat (pre-split) backend keys: flat key -> (backend, key of its settings class).
+FLAT_BACKEND_KEYS: dict[str, tuple[str, str]] = {
+    "lm_iterations": ("lm", "iterations"),
+    "lm_lambda": ("lm", "lambda_"),
+    "lm_adaptive": ("lm", "adaptive"),
+    "lm_lambda_max": ("lm", "lambda_max"),
+    "lm_obstacle_weight": ("lm", "obstacle_weight"),
+    "lm_budget_weight": ("lm", "budget_weight"),
+    "lm_margin": ("lm", "margin"),
+    "lm_damping": ("lm", "damping"),
+    "ipopt_max_iter": ("ipopt", "max_iter"),
+    "ipopt_first_max_iter": ("ipopt", "first_max_iter"),
+    "ipopt_options": ("ipopt", "options"),
+    "scp_max_iterations": ("scp", "max_iterations"),
+    "scp_trust_region": ("scp", "trust_region"),
 }
-_FLAGS = ("continuous", "lm_adaptive")
+
+
+def backend_settings(value: object) -> AnyBackendSettings:
+    """A backend's settings from its name (its defaults) or as given.
+
+    Raises:
+        ValueError: Neither a backend name nor a backend settings object.
+    """
+    if isinstance(value, str) and value in BACKEND_SETTINGS:
+        return BACKEND_SETTINGS[value]()
+    if isinstance(value, IpoptSettings | LMSettings | SCPSettings):
+        return value
+    raise ValueError(f"backend must be one of {list(BACKENDS)} or an IpoptSettings, LMSettings "
+                     f"or SCPSettings object, got {value!r}")
+
+
+def rescue_settings(value: object) -> IpoptSettings | None:
+    """The rescue's IPOPT settings from ``None``, ``"ipopt"`` (IPOPT's defaults) or as given.
+
+    Raises:
+        ValueError: Anything else.
+    """
+    if value is None or isinstance(value, IpoptSettings):
+        return value
+    if value == "ipopt":
+        return IpoptSettings()
+    raise ValueError(f"rescue_backend must be None or 'ipopt', got {value!r}")
 
 
 @dataclass(frozen=True)
 class PlannerSettings:
-    """Every setting of the safe trajectory planner, validated.
+    """Everything a planner is built from, validated.
 
     Attributes:
-        backend: ``"ipopt"``, ``"lm"`` or ``"scp"``.
-        n_waypoints: N, waypoints including the start (thesis: 30).
-        clearance: eps' (thesis: 0.5 m); an obstacle with radius r needs eps' + r.
-        max_obstacles: Most obstacles given to a backend (the nearest reachable ones are kept;
-            the certificate checks all).
-        dt: Time between waypoints of the GP prior (s); with ``Q_c = I`` only ``sigma_smooth dt^-3``
-            matters (the public code's horizon of 10 s over 29 intervals by default).
-        sigma_smooth: Smoothness budget ``h_smooth <= sigma_smooth`` (Eq. 3.3). The farthest
-            any waypoint can get is ``sqrt(sigma_smooth T^3 / 3)``, T = (N - 1) dt: 4 m by default.
-        smooth_weight: rho, a small weight on ``h_smooth`` added to the objective of every
-            backend: among plans that get equally close to the subgoal it picks the smoothest, and
-            it makes the problem strictly convex away from obstacles.
-        continuous: Also keep the clearance along every segment between waypoints.
-        goal_tolerance: ``reached_subgoal`` is ``||x_N - subgoal|| < goal_tolerance`` (m).
-        feasibility_margin: Extra clearance (m) asked of IPOPT and SCP, which solve to a
-            tolerance; the certificate checks the exact clearance.
-        lm_iterations: LM iterations per lambda (thesis: 10 in training).
-        lm_lambda: The multiplier lambda of Eq. 3.8 (fixed mode; the start of adaptive mode).
-        lm_adaptive: Double lambda until the plan passes the certificate, up to ``lm_lambda_max``
-            (App. B.2.3; the evaluation setting).
-        lm_lambda_max: Largest lambda, also used in escape mode (thesis: 1024).
-        lm_obstacle_weight: Base weight of the obstacle hinge (times lambda).
-        lm_budget_weight: Base weight of the smoothness-budget hinge (times lambda).
-        lm_margin: Extra clearance (m) in the LM hinge, so penalty solutions usually pass the
-            exact certificate (the public code adds 0.01 m).
-        lm_damping: Initial Marquardt damping.
-        ipopt_max_iter: IPOPT iteration cap of the cold (stationary-start) attempt.
-        ipopt_first_max_iter: Iteration cap of the first attempt from the guess / previous plan
-            (0: skip it).
-        ipopt_options: IPOPT options merged over :data:`solvers.planner.ipopt.IPOPT_OPTIONS`
-            (None is stored as an empty dict).
-        scp_max_iterations: QP solves at most.
-        scp_trust_region: Half-width of the SCP trust-region box.
-        rescue_backend: ``None`` (default) or ``"ipopt"``: when the LM or SCP plan fails the
+        problem: The problem's settings.
+        backend: The backend's settings (a name gives that backend's defaults).
+        rescue: ``None`` (default) or IPOPT's settings: when the LM or SCP plan fails the
             certificate, solve the same problem with IPOPT (cold, hard constraints) before
-            falling back to the stationary plan (solvers/README.md, "Rescue"). Stored as None
-            with ``backend="ipopt"``, which has nothing to rescue with.
+            falling back to the stationary plan (solvers/README.md, "Rescue"). ``"ipopt"``
+            gives IPOPT's defaults. Stored as None with an IPOPT backend, which has nothing to
+            rescue with.
 
     Raises:
-        ValueError: An unknown backend or rescue backend, a non-finite or out-of-range number,
-            a non-integer count, a flag that is not a boolean, ``lm_lambda > lm_lambda_max`` or
-            ``ipopt_options`` that is not a mapping.
+        ValueError: ``problem`` is not a :class:`ProblemSettings`, or a bad backend or rescue.
     """
 
-    backend: str = "ipopt"
-    n_waypoints: int = 30
-    clearance: float = 0.5
-    max_obstacles: int = 16
-    dt: float = 10.0 / 29.0
-    sigma_smooth: float = 0.048
-    smooth_weight: float = 0.01
-    continuous: bool = False
-    goal_tolerance: float = 0.05
-    feasibility_margin: float = 1e-5
-    lm_iterations: int = 10
-    lm_lambda: float = 1.0
-    lm_adaptive: bool = False
-    lm_lambda_max: float = 1024.0
-    lm_obstacle_weight: float = 1000.0
-    lm_budget_weight: float = 100.0
-    lm_margin: float = 0.02
-    lm_damping: float = 1e-4
-    ipopt_max_iter: int = 200
-    ipopt_first_max_iter: int = 30
-    # a dict is not hashable: equal settings still hash equal without it
-    ipopt_options: Mapping[str, object] | None = field(default=None, hash=False)
-    scp_max_iterations: int = 30
-    scp_trust_region: float = 1.0
-    rescue_backend: str | None = None
+    problem: ProblemSettings = field(default_factory=ProblemSettings)
+    backend: AnyBackendSettings = field(default_factory=IpoptSettings)
+    rescue: IpoptSettings | None = None
 
     def __post_init__(self) -> None:
-        if self.backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {list(BACKENDS)}, got {self.backend!r}")
-        if self.rescue_backend not in RESCUE_BACKENDS:
-            raise ValueError(
-                f"rescue_backend must be None or 'ipopt', got {self.rescue_backend!r}"
-            )
-        for name in _POSITIVE:
-            self._set(name, _number(name, getattr(self, name), "> 0", lambda v: v > 0))
-        for name in _NON_NEGATIVE:
-            self._set(name, _number(name, getattr(self, name), ">= 0", lambda v: v >= 0))
-        for name, least in _COUNTS.items():
-            self._set(name, _count(name, getattr(self, name), least))
-        for name in _FLAGS:
-            self._set(name, _flag(name, getattr(self, name)))
-        if self.lm_lambda > self.lm_lambda_max:
-            raise ValueError(
-                f"lm_lambda ({self.lm_lambda}) must be <= lm_lambda_max ({self.lm_lambda_max})"
-            )
-        options = self.ipopt_options
-        if options is not None and not isinstance(options, Mapping):
-            raise ValueError(f"ipopt_options must be a mapping or None, got {options!r}")
-        self._set("ipopt_options", {str(k): v for k, v in (options or {}).items()})
-        if self.backend == "ipopt":
-            self._set("rescue_backend", None)
+        if not isinstance(self.problem, ProblemSettings):
+            raise ValueError(f"problem must be a ProblemSettings, got {self.problem!r}")
+        set_field(self, "backend", backend_settings(self.backend))
+        rescue = rescue_settings(self.rescue)
+        set_field(self, "rescue", None if self.backend.name == "ipopt" else rescue)
 
-    def _set(self, name: str, value: object) -> None:
-        object.__setattr__(self, name, value)
+    @property
+    def rescue_backend(self) -> str | None:
+        """``"ipopt"`` when plans are rescued, else None (the ``conf/planner`` key)."""
+        return None if self.rescue is None else "ipopt"
 
-    def to_kwargs(self) -> dict[str, object]:
-        """The constructor keywords that rebuild these settings."""
-        return asdict(self)
+    @classmethod
+    def from_flat(cls, flat: Mapping[str, object]) -> PlannerSettings:
+        """The settings of a flat, pre-split settings node or object.
 
+        ``flat`` holds the keywords the planner took before its settings were split:
+        ``backend`` (a name), the problem's keys, ``lm_*``, ``ipopt_*`` and ``scp_*`` keys
+        (:data:`FLAT_BACKEND_KEYS`) and ``rescue_backend`` (``None`` or ``"ipopt"``); missing
+        keys take their defaults. Every backend's keys are validated, as they were; the chosen
+        backend's become its settings and the ``ipopt_*`` keys also configure the IPOPT rescue.
+        The other backends' keys are dropped (``lm_margin`` also widened the obstacle selection
+        of IPOPT and SCP, which now add
+        :data:`~solvers.planner.backends.base.SELECTION_SLACK`, its default).
 
-def setting_names() -> tuple[str, ...]:
-    """Names of the settings, in constructor order (the keys of ``conf/planner/*.yaml``)."""
-    return tuple(f.name for f in fields(PlannerSettings))
+        Raises:
+            ValueError: An unknown key or a bad value (the message names it).
+        """
+        known = {"backend", "rescue_backend", *problem_keys(), *FLAT_BACKEND_KEYS}
+        unknown = sorted(set(flat) - known)
+        if unknown:
+            raise ValueError(f"unknown planner settings {unknown}; known: {sorted(known)}")
+        name = flat.get("backend", "ipopt")
+        if not isinstance(name, str) or name not in BACKENDS:
+            raise ValueError(f"backend must be one of {list(BACKENDS)}, got {name!r}")
+        keywords: dict[str, dict[str, object]] = {backend: {} for backend in BACKENDS}
+        for key, (backend, setting) in FLAT_BACKEND_KEYS.items():
+            if key in flat:
+                keywords[backend][setting] = flat[key]
+        built = {}
+        for backend, kwargs in keywords.items():
+            try:
+                built[backend] = BACKEND_SETTINGS[backend](**kwargs)  # type: ignore[arg-type]
+            except ValueError as error:
+                raise ValueError(f"{backend} settings ({backend}_* keys): {error}") from None
+        problem = ProblemSettings(**{k: flat[k] for k in problem_keys() if k in flat})  # type: ignore[arg-type]
+        rescue = rescue_settings(flat.get("rescue_backend"))
+        return cls(problem, built[name], built["ipopt"] if rescue is not None else None)
 
-
-def _number(name: str, value: object, bound: str, ok: Callable[[float], bool]) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
-    number = float(value)
-    if not math.isfinite(number) or not ok(number):
-        raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
-    return number
-
-
-def _count(name: str, value: object, least: int) -> int:
-    integral = isinstance(value, numbers.Integral) or (
-        isinstance(value, numbers.Real)
-        and math.isfinite(float(value))
-        and float(value).is_integer()
-    )
-    if isinstance(value, bool) or not integral or int(value) < least:  # type: ignore[call-overload]
-        raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
-    return int(value)  # type: ignore[call-overload]
-
-
-def _flag(name: str, value: object) -> bool:
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, numbers.Integral) and int(value) in (0, 1):
-        return bool(value)
-    raise ValueError(f"{name} must be a boolean, got {value!r}")
+    def __setstate__(self, state: dict[str, object]) -> None:
+        """Unpickle; a flat settings object pickled before the split goes through
+        :meth:`from_flat`."""
+        if "problem" not in state:
+            state = dict(PlannerSettings.from_flat(state).__dict__)
+        self.__dict__.update(state)

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.planner.problem import PreparedProblem, join
+from solvers.planner.problem.gp_prior import join
+from solvers.planner.problem.preparation import PreparedProblem
 
 #: A subgoal that moved less than this (m) since the previous plan counts as the same one.
 SAME_SUBGOAL = 0.25

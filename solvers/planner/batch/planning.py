@@ -1,11 +1,12 @@
-"""``plan_batch``: several independent problems at once, shared with a helper process.
+"""``plan_batch``: several independent problems at once, shared with helper processes.
 
 Every problem is solved as ``planner.plan(start, subgoal, obstacles, warm_start=False)`` solves
 it, certificate and fallback included, so the plans equal those of a loop of ``plan`` calls:
 exactly for IPOPT and LM, to about 1e-8 m for SCP (OSQP carries rounding state from one QP to
 the next, so SCP plans depend slightly on the problems solved before, in a loop too). Speed
-comes from a second core (the pool of :mod:`solvers.planner.batch`); the measurements behind the
-default are in solvers/README.md, "Batch".
+comes from a second core (the helper processes of :mod:`solvers.planner.batch.pool`, sharing
+the problems through :mod:`solvers.planner.batch.claims`); the measurements behind the default are
+in solvers/README.md, "Batch".
 
 This module works on any planner with ``settings``, ``memory``, ``plan``, ``warmup`` and a
 ``from_settings`` class method (:class:`BatchPlanner`); the planner module does not import it.
@@ -21,14 +22,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from solvers.planner.batch import (
-    default_workers,
-    factory_blob,
-    failure_error,
-    get_pool,
-    is_failure,
-    solve_task,
-)
+from solvers.planner.batch.claims import failure_error, is_failure, solve_task
+from solvers.planner.batch.pool import default_workers, factory_blob, get_pool
 from solvers.planner.result import PlanResult
 from solvers.planner.warm_start import WarmStartMemory
 

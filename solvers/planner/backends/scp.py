@@ -1,4 +1,4 @@
-"""Sequential convex programming on OSQP (the TrajOpt idea) for the problem of thesis Eq. 3.3.
+"""The SCP backend: sequential convex programming on OSQP (the TrajOpt idea) for Eq. 3.3.
 
 Each iteration solves the convex QP
 
@@ -19,17 +19,29 @@ is therefore safe whenever it is stopped. The objective is convex quadratic with
 Hessian (the GP prior stays quadratic), which avoids the indefinite Lagrangian Hessian that made
 CasADi's ``sqpmethod`` fail on this problem. OSQP is set up once per compiled slot count and
 updated and warm-started in place.
+
+Every QP solution keeps every waypoint clear when the start iterate does, so the backend starts
+from the previous plan or the detour guess (scaled into the smoothness budget) when that is clear
+of the selected obstacles, and from the stationary trajectory otherwise. The knobs are those of
+:class:`SCPSettings` (``conf/planner/scp.yaml``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from solvers.planner.problem import GPPrior
+from solvers.planner.backends.base import bucket_size, hard_constraint_reach
+from solvers.planner.problem.certificate import Iterate
+from solvers.planner.problem.context import ProblemContext
+from solvers.planner.problem.gp_prior import GPPrior
+from solvers.planner.problem.preparation import PreparedProblem
+from solvers.planner.validation import count, positive, set_field
 
 #: OSQP settings; every QP solution is re-checked exactly (and cut back), so a loose or
 #: unfinished QP solve costs progress, never safety.
@@ -42,6 +54,29 @@ OSQP_SETTINGS: dict[str, object] = {
     "warm_starting": True,
     "adaptive_rho": True,
 }
+
+
+@dataclass(frozen=True)
+class SCPSettings:
+    """The SCP backend's knobs, validated (``ValueError`` names the key and the value).
+
+    Attributes:
+        max_iterations: QP solves at most.
+        trust_region: Half-width of the box trust region on every variable.
+    """
+
+    name: ClassVar[str] = "scp"
+
+    max_iterations: int = 30
+    trust_region: float = 1.0
+
+    def __post_init__(self) -> None:
+        set_field(self, "max_iterations", count("max_iterations", self.max_iterations, 1))
+        set_field(self, "trust_region", positive("trust_region", self.trust_region))
+
+    def build(self, context: ProblemContext) -> ScpBackend:
+        """The SCP backend for ``context``'s problem."""
+        return ScpBackend(context, self)
 
 
 @dataclass
@@ -266,3 +301,73 @@ class ScpProgram:
                 converged = True
                 break
         return ScpOutcome(z, status, iterations, converged)
+
+
+class ScpBackend:
+    """Solve the prepared problem by sequential convex programming (see the module docstring).
+
+    Attributes:
+        context: The problem's settings, prior and certificate.
+        settings: The SCP knobs.
+        selection_reach: Obstacles beyond this (m) are not given to SCP.
+        programs: OSQP programs by obstacle-slot count; not pickled.
+    """
+
+    def __init__(self, context: ProblemContext, settings: SCPSettings) -> None:
+        self.context = context
+        self.settings = settings
+        self.selection_reach = hard_constraint_reach(context)
+        self.programs: dict[int, ScpProgram] = {}
+
+    def program(self, n_slots: int) -> ScpProgram:
+        """The OSQP program for ``n_slots`` obstacle slots (set up once)."""
+        if n_slots not in self.programs:
+            s = self.context.settings
+            self.programs[n_slots] = ScpProgram(
+                self.context.prior, n_slots, smooth_regulariser=s.smooth_weight,
+                continuous=s.continuous,
+            )
+        return self.programs[n_slots]
+
+    def warmup(self, slot_counts: Iterable[int]) -> None:
+        """Set up the programs for these slot counts now."""
+        for slots in slot_counts:
+            self.program(slots)
+
+    def solve(self, prepared: PreparedProblem, warm: np.ndarray | None = None) -> Iterate:
+        """SCP from the first clear candidate (previous plan, detour guess) or the stationary
+        trajectory."""
+        context = self.context
+        s = context.settings
+        prep = prepared
+        sel = prep.selected
+        need = context.solver_need(prep)
+        exact_need = np.where(
+            prep.escape[sel], need, prep.required[sel] + 0.5 * s.feasibility_margin
+        )
+        z0 = np.zeros(context.prior.n_var)
+        guess = context.guess(prep)
+        candidates = [c for c in (warm, guess) if c is not None]
+        for candidate in candidates:
+            h = context.prior.smoothness(candidate)
+            if h > s.sigma_smooth:
+                candidate = candidate * np.sqrt(s.sigma_smooth / h) * (1.0 - 1e-9)
+            if context.certificate.clear_of(prep, candidate, sel, need):
+                z0 = candidate
+                break
+        program = self.program(bucket_size(len(sel), s.max_obstacles))
+        outcome = program.solve(
+            z0,
+            context.target(prep),
+            prep.centres[sel],
+            need,
+            sigma_smooth=s.sigma_smooth,
+            trust_region=self.settings.trust_region,
+            max_iterations=self.settings.max_iterations,
+            exact_need=exact_need,
+        )
+        return Iterate(outcome.z, outcome.status, outcome.iterations)
+
+    def __getstate__(self) -> dict[str, object]:
+        """Pickle without the OSQP programs; they are set up again lazily."""
+        return {**self.__dict__, "programs": {}}

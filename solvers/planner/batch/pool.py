@@ -1,22 +1,16 @@
-"""Helper processes that share the problems of :func:`solvers.planner.batching.plan_batch`.
+"""The helper processes of :func:`solvers.planner.batch.planning.plan_batch` (caller side).
 
 CasADi (IPOPT and the LM kernels) keeps the GIL while it evaluates, so Python threads cannot run
 two solves at once: a thread pool of planner clones measured 0.9-1.0x the loop for IPOPT and LM.
 The batch entry point therefore shares the problems with helper processes. Each helper is a
 fresh interpreter (:meth:`solvers.workers.Helper.spawn`, not a fork: the caller's state and
-``__main__`` are not copied). The pool knows no planner class: it is sent a pickled
-*factory* (a callable returning a :class:`BatchSolver`), calls it once per planner
-configuration, and solves with the result exactly as ``plan(start, subgoal, obstacles,
-warm_start=False)`` does, certificate included.
-
-Work sharing: a page of shared memory (a temporary file mapped by every process) holds the batch
-id and one claim byte per problem. Each process walks the problems from its own starting offset
-and solves a problem only after writing its id into a free claim byte, so the work balances one
-problem at a time. Two processes that claim the same byte at the same instant both solve it (a
-harmless duplicate; the first result is kept); no problem is ever left out, because a process
-skips only problems someone else has claimed. The caller waits for the helpers that claimed
-problems and solves whatever is still missing itself (a helper that died), so a batch always
-completes.
+``__main__`` are not copied) running :class:`solvers.planner.batch.server.BatchServer`. The pool
+knows no planner class: it sends a pickled *factory* (a callable returning a
+:class:`~solvers.planner.batch.claims.BatchSolver`), which each helper calls once per planner
+configuration. The problems are shared through the page of claims of
+:mod:`solvers.planner.batch.claims`; the caller waits for the helpers that claimed problems and
+solves whatever is still missing itself (a helper that died), so a batch always completes. By
+default the pool also measures whether sharing pays (:meth:`HelperPool.choose_shared`).
 
 One pool serves every planner of a process; it is created on first use, belongs to the process
 that created it (a forked child starts its own) and is shut down at exit.
@@ -30,21 +24,29 @@ import logging
 import mmap
 import os
 import pickle
-import struct
 import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
-from functools import partial
 from multiprocessing.connection import wait
-from typing import Any, Protocol
+from typing import Any
 
+from solvers.planner.batch.claims import (
+    CAPACITY,
+    MAIN_ID,
+    SIZE,
+    BatchSolver,
+    Task,
+    attempt,
+    claim,
+    close_batch,
+    open_batch,
+    owner,
+)
 from solvers.workers import Helper, HelperError
 
 logger = logging.getLogger(__name__)
 
-#: Problems per round of claims (larger batches are shared in several rounds).
-CAPACITY = 4096
 #: With the default worker count, every this many batches of one planner and size run the way
 #: (shared or here alone) currently measured slower, so the choice follows the machine's load.
 EXPLORE_EVERY = 8
@@ -52,32 +54,6 @@ EXPLORE_EVERY = 8
 TIMING_DECAY = 0.9
 #: Helpers that may die (and be replaced) before the pool stops starting new ones.
 MAX_LOST = 3
-
-_HEADER = 8  # int64 batch id
-_MAIN_ID = 1
-_SIZE = _HEADER + CAPACITY
-
-Task = tuple[Any, Any, Any]
-
-
-class BatchSolver(Protocol):
-    """What a helper builds from a factory: a planner it can warm up and solve with."""
-
-    def warmup(self) -> object:
-        """Build every compiled solver now."""
-        ...
-
-    def plan(self, start: Any, subgoal: Any, obstacles: Any = None,
-             warm_start: bool = True) -> Any:
-        """Plan one problem."""
-        ...
-
-
-def solve_task(solver: BatchSolver, task: Task) -> Any:
-    """``plan(start, subgoal, obstacles, warm_start=False)`` for one (start, subgoal, obstacles)
-    problem of a batch."""
-    start, subgoal, obstacles = task
-    return solver.plan(start, subgoal, obstacles, warm_start=False)
 
 
 def usable_cpus() -> int:
@@ -106,7 +82,7 @@ class _Helper:
     def __init__(self, ident: int, shared_fd: int) -> None:
         self.ident = ident
         self.process = Helper.spawn(
-            "solvers.planner.batch:BatchServer", f"planner-batch-{ident}",
+            "solvers.planner.batch.server:BatchServer", f"planner-batch-{ident}",
             argv=(shared_fd, ident), pass_fds=(shared_fd,), quiet=True)
         self.ready: set[bytes] = set()  # planner digests registered and warmed up
         self.asked: set[bytes] = set()  # digests sent for registration
@@ -153,8 +129,8 @@ class HelperPool:
     def __init__(self) -> None:
         self.pid = os.getpid()
         self._file = tempfile.TemporaryFile()
-        self._file.truncate(_SIZE)
-        self.shared = mmap.mmap(self._file.fileno(), _SIZE)
+        self._file.truncate(SIZE)
+        self.shared = mmap.mmap(self._file.fileno(), SIZE)
         self.helpers: list[_Helper] = []
         self.batch_id = 0
         self.lock = threading.Lock()
@@ -205,7 +181,7 @@ class HelperPool:
         self.helpers = [h for h in self.helpers if h.alive]
         used = {h.ident for h in self.helpers}
         while len(self.helpers) < count and self.lost <= MAX_LOST:
-            ident = min(set(range(_MAIN_ID + 1, 256)) - used)
+            ident = min(set(range(MAIN_ID + 1, 256)) - used)
             used.add(ident)
             try:
                 self.helpers.append(_Helper(ident, self._file.fileno()))
@@ -292,8 +268,7 @@ class HelperPool:
         shared = self.shared
         self.batch_id += 1
         bid = self.batch_id
-        shared[_HEADER : _HEADER + n] = bytes(n)
-        struct.pack_into("<q", shared, 0, bid)
+        open_batch(shared, bid, n)
         parties = [h for h in helpers if h.alive]
         sent = []
         for k, helper in enumerate(parties, start=1):
@@ -304,11 +279,9 @@ class HelperPool:
         done = [False] * n
         try:
             for k in range(n):
-                if shared[_HEADER + k]:
-                    continue
-                shared[_HEADER + k] = _MAIN_ID
-                results[k], done[k] = _attempt(solve, tasks[k]), True
-            owners = {shared[_HEADER + k] for k in range(n) if not done[k]}
+                if claim(shared, k, MAIN_ID):
+                    results[k], done[k] = attempt(solve, tasks[k]), True
+            owners = {owner(shared, k) for k in range(n) if not done[k]}
             for helper in sent:
                 if helper.ident not in owners:
                     continue  # it answers later; the answer is dropped
@@ -318,10 +291,10 @@ class HelperPool:
                         results[k], done[k] = value, True
                         self.solved_by_helpers += 1
         finally:
-            struct.pack_into("<q", shared, 0, 0)  # late helpers stop claiming
+            close_batch(shared)
         for k in range(n):  # claimed by a helper that has gone
             if not done[k]:
-                results[k], done[k] = _attempt(solve, tasks[k]), True
+                results[k], done[k] = attempt(solve, tasks[k]), True
         return results
 
     def _await(self, helper: _Helper, bid: int) -> list[tuple[int, Any]]:
@@ -333,29 +306,6 @@ class HelperPool:
             if message[0] == "done" and message[1] == bid:
                 return list(message[2])
         return []
-
-
-def _attempt(solve: Callable[[Task], Any], task: Task) -> Any:
-    try:
-        return solve(task)
-    except Exception as error:  # re-raised by the caller in problem order
-        return _Failure(error)
-
-
-class _Failure:
-    """An exception raised while solving one problem (kept apart from results)."""
-
-    def __init__(self, error: Exception) -> None:
-        self.error = error
-
-
-def is_failure(value: object) -> bool:
-    return isinstance(value, _Failure)
-
-
-def failure_error(value: object) -> Exception:
-    assert isinstance(value, _Failure)
-    return value.error
 
 
 _POOL: HelperPool | None = None
@@ -385,51 +335,3 @@ def shutdown_pool() -> None:
 
 
 atexit.register(shutdown_pool)
-
-
-# -------------------------------------------------------------------- helper side
-class BatchServer:
-    """A helper's handler (``argv``: the shared page's descriptor and the helper's id).
-
-    Requests: ``("register", digest, factory blob)`` builds and warms up a planner
-    (reply ``("registered", digest, error or None)``); ``("batch", id, digest, tasks, offset)``
-    claims and solves problems from ``offset`` on (reply ``("done", id, [(k, result), ...])``).
-    """
-
-    def __init__(self, shared_fd: str, ident: str) -> None:
-        self.shared = mmap.mmap(int(shared_fd), _SIZE)
-        self.ident = int(ident)
-        self.planners: dict[bytes, BatchSolver] = {}
-
-    def __call__(self, message: tuple[Any, ...]) -> tuple[Any, ...]:
-        if message[0] == "register":
-            _, digest, blob = message
-            try:
-                planner = pickle.loads(blob)()
-                planner.warmup()
-                self.planners[digest] = planner
-                return ("registered", digest, None)
-            except Exception as error:
-                return ("registered", digest, repr(error))
-        _, bid, digest, tasks, offset = message
-        return ("done", bid, self._claim_and_solve(bid, self.planners[digest], tasks, offset))
-
-    def _claim_and_solve(self, bid: int, planner: BatchSolver, tasks: Sequence[Task],
-                         offset: int) -> list[tuple[int, Any]]:
-        shared, solved = self.shared, []
-        n = len(tasks)
-        for step in range(n):
-            k = (offset + step) % n
-            if struct.unpack_from("<q", shared, 0)[0] != bid:
-                break
-            if shared[_HEADER + k]:
-                continue
-            shared[_HEADER + k] = self.ident
-            value = _attempt(partial(solve_task, planner), tasks[k])
-            if isinstance(value, _Failure):
-                try:
-                    pickle.dumps(value.error)
-                except Exception:
-                    value = _Failure(RuntimeError(repr(value.error)))
-            solved.append((k, value))
-        return solved

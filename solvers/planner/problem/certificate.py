@@ -1,10 +1,12 @@
 """The safety certificate: every returned plan keeps the clearance, or it is the stationary one.
 
 Thesis §3.5.2: the stationary trajectory is feasible whenever the start is, so a plan that fails
-the check (at the waypoints, or along every segment with the continuous option) is replaced by
-it and flagged as a fallback. In escape mode (the start inside some clearance) the check asks
-"no closer than the start" of those obstacles (:func:`solvers.planner.problem.prepare`) and the
-plan aims at :func:`escape_target` instead of the subgoal (solvers/README.md, "Escape mode").
+the check of Eq. 3.7 (at the waypoints, or along every segment with the continuous option) is
+replaced by it and flagged as a fallback. In escape mode (the start inside some clearance) the
+check asks "no closer than the start" of those obstacles
+(:func:`solvers.planner.problem.preparation.prepare`) and the plan aims at :func:`escape_target`
+instead of the subgoal (solvers/README.md, "Escape mode"). A backend hands its plan over as an
+:class:`Iterate`, whichever backend it is.
 """
 
 from __future__ import annotations
@@ -14,13 +16,36 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solvers.planner.backend import Iterate
 from solvers.planner.geometry import point_distances, segment_distances
-from solvers.planner.problem import PreparedProblem, split
+from solvers.planner.problem.gp_prior import split
+from solvers.planner.problem.preparation import PreparedProblem
 from solvers.planner.result import PlanResult
 
 #: Tolerance of the certificate (metres): a plan passes when every distance >= required - this.
 CERTIFICATE_TOLERANCE = 1e-9
+
+
+@dataclass
+class Iterate:
+    """A backend's plan before the certificate.
+
+    Attributes:
+        z: Trajectory variables in the start-relative frame (layout in
+            :mod:`solvers.planner.problem.gp_prior`).
+        status: Short text: ``solved``, ``max_iter``, ``solved_shortened(theta=0.8)`` ...
+        iterations: Solver iterations (IPOPT iterations, LM iterations over every lambda round,
+            or QP solves).
+        multiplier: LM's penalty multiplier lambda (``nan`` for the other backends).
+        failed: The backend raised; ``z`` is meaningless and the planner falls back.
+        rescued: ``z`` is the rescue backend's plan, which passed the certificate.
+    """
+
+    z: np.ndarray
+    status: str
+    iterations: int
+    multiplier: float = float("nan")
+    failed: bool = False
+    rescued: bool = False
 
 
 @dataclass(frozen=True)

@@ -1,42 +1,39 @@
-"""What the planner and its backends share: the settings and what follows from them.
+"""What every backend shares: the problem's settings and what follows from them (§3.5.2).
 
 The GP prior of Eq. 3.6 and its reach radii, the certificate, and the problem-level rules every
-backend applies the same way: which obstacles a backend sees (:meth:`PlanningContext.prepare`),
-the point it aims at (:meth:`~PlanningContext.target`), the distance a hard-constraint backend is
-asked to keep (:meth:`~PlanningContext.solver_need`) and the detour guess
-(:meth:`~PlanningContext.guess`).
+backend applies the same way: the validated, start-relative problem
+(:meth:`ProblemContext.prepare`), the point it aims at (:meth:`~ProblemContext.target`), the
+distance a hard-constraint backend is asked to keep (:meth:`~ProblemContext.solver_need`) and
+the detour guess (:meth:`~ProblemContext.guess`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from solvers.planner.certificate import Certificate, escape_target
-from solvers.planner.problem import (
-    ESCAPE_TOLERANCE,
-    GPPrior,
-    PreparedProblem,
-    build_gp_prior,
-    detour_guess,
-    prepare,
-)
-from solvers.planner.settings import PlannerSettings
+from solvers.planner.problem.certificate import Certificate, escape_target
+from solvers.planner.problem.gp_prior import GPPrior, build_gp_prior
+from solvers.planner.problem.initial_guess import detour_guess
+from solvers.planner.problem.preparation import ESCAPE_TOLERANCE, PreparedProblem, prepare
+from solvers.planner.problem.settings import ProblemSettings
 
 
-class PlanningContext:
-    """The settings, the GP prior, the reach and the certificate of one planner.
+class ProblemContext:
+    """The settings, the GP prior, the reach and the certificate of one planning problem.
 
     Attributes:
-        settings: The validated settings.
+        settings: The validated problem settings.
         prior: GP prior for ``n_waypoints`` and ``dt``.
         reach_radii: Per-waypoint reach under the smoothness budget (N,).
         reach: Farthest any waypoint of an admissible plan can get from the start (m).
         certificate: The check every plan goes through.
     """
 
-    def __init__(self, settings: PlannerSettings) -> None:
+    def __init__(self, settings: ProblemSettings, prior: GPPrior | None = None) -> None:
+        """``prior``: an already built prior for these settings (e.g. one read from a pickle)."""
         self.settings = settings
-        self.prior: GPPrior = build_gp_prior(settings.n_waypoints, settings.dt)
+        self.prior: GPPrior = (prior if prior is not None
+                                else build_gp_prior(settings.n_waypoints, settings.dt))
         self.reach_radii: np.ndarray = self.prior.reach_radii(settings.sigma_smooth)
         self.reach = float(self.reach_radii[-1])
         self.certificate = Certificate(
@@ -46,23 +43,15 @@ class PlanningContext:
             goal_tolerance=settings.goal_tolerance,
         )
 
-    def prepare(self, start: object, subgoal: object, obstacles: object) -> PreparedProblem:
-        """Validate the inputs and select the obstacles the backend is given (ValueError on
-        bad input); obstacles beyond the reach plus margins are dropped."""
+    def prepare(
+        self, start: object, subgoal: object, obstacles: object, *, reach: float
+    ) -> PreparedProblem:
+        """Validate the inputs (ValueError on bad input) and select the obstacles whose
+        clearance disc lies within ``reach`` of the start (the backend's selection radius,
+        :attr:`solvers.planner.backends.base.Backend.selection_reach`)."""
         s = self.settings
-        reach = self.reach
-        if s.backend == "lm":
-            # The penalty budget is soft: allow the plan to overrun it (the bound is used only
-            # to drop far obstacles; the certificate still checks all of them).
-            reach = float(np.sqrt(4.0 * s.sigma_smooth / self.prior.reach_coef[-1]))
-        return prepare(
-            start,
-            subgoal,
-            obstacles,
-            clearance=s.clearance,
-            reach=reach + s.feasibility_margin + s.lm_margin,
-            max_obstacles=s.max_obstacles,
-        )
+        return prepare(start, subgoal, obstacles, clearance=s.clearance, reach=reach,
+                       max_obstacles=s.max_obstacles)
 
     def target(self, prep: PreparedProblem) -> np.ndarray:
         """The start-relative point the plan aims at: the subgoal, or the escape target."""
