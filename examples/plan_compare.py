@@ -7,7 +7,7 @@ one problem").
 
 from pathlib import Path
 
-from semdp.plan_plots import plot_comparison
+from semdp.reporting.plan_plots import plot_comparison
 from solvers.planner import compare_backends
 
 comparison = compare_backends(start=[0, 0], subgoal=[2.5, 1],

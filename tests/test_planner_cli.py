@@ -20,7 +20,7 @@ from solvers.planner.compare import COLUMNS
 def test_plan_cli_writes_png_and_result(tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     completed = subprocess.run(
-        [sys.executable, "-m", "semdp.plan", "start=[0,0]", "subgoal=[2,1]",
+        [sys.executable, "-m", "semdp.cli.plan", "start=[0,0]", "subgoal=[2,1]",
          "obstacles=[[1,0.3,0],[0.4,-0.8,0.1]]", "backend=scp", f"hydra.run.dir={run_dir}"],
         capture_output=True, text=True, check=True, timeout=120,
     )
@@ -33,7 +33,7 @@ def test_plan_cli_writes_png_and_result(tmp_path: Path) -> None:
 
 def test_plan_cli_reports_bad_input_without_traceback(tmp_path: Path) -> None:
     completed = subprocess.run(
-        [sys.executable, "-m", "semdp.plan", "obstacles=[[1,2,-1]]",
+        [sys.executable, "-m", "semdp.cli.plan", "obstacles=[[1,2,-1]]",
          f"hydra.run.dir={tmp_path}"],
         capture_output=True, text=True, timeout=120,
     )
@@ -64,7 +64,7 @@ def test_plan_cli_compare_mode_writes_one_figure_and_one_table(tmp_path: Path) -
     run_dir = tmp_path / "run"
     names = ["ipopt", "lm", "lm_adaptive", "scp"]
     completed = subprocess.run(
-        [sys.executable, "-m", "semdp.plan", f"backends=[{','.join(names)}]", "start=[0,0]",
+        [sys.executable, "-m", "semdp.cli.plan", f"backends=[{','.join(names)}]", "start=[0,0]",
          "subgoal=[2,1]", "obstacles=[[1,0.3],[0.4,-0.8]]", "repeats=1",
          f"hydra.run.dir={run_dir}"],
         capture_output=True, text=True, check=True, timeout=180,
@@ -101,7 +101,7 @@ def test_plan_compare_applies_planner_overrides_to_every_planner(tmp_path: Path)
 
 def test_plan_cli_compare_unknown_backend_fails_with_one_line(tmp_path: Path) -> None:
     completed = subprocess.run(
-        [sys.executable, "-m", "semdp.plan", "backends=[ipopt,teleport]",
+        [sys.executable, "-m", "semdp.cli.plan", "backends=[ipopt,teleport]",
          f"hydra.run.dir={tmp_path}"],
         capture_output=True, text=True, timeout=120,
     )
@@ -114,7 +114,7 @@ def test_plan_cli_compare_unknown_backend_fails_with_one_line(tmp_path: Path) ->
 
 def test_plan_cli_compare_malformed_obstacles_fail_with_one_line(tmp_path: Path) -> None:
     completed = subprocess.run(
-        [sys.executable, "-m", "semdp.plan", "backends=[lm,scp]", "obstacles=[[1,0.3],[0.4]]",
+        [sys.executable, "-m", "semdp.cli.plan", "backends=[lm,scp]", "obstacles=[[1,0.3],[0.4]]",
          f"hydra.run.dir={tmp_path}"],
         capture_output=True, text=True, timeout=120,
     )

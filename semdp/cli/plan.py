@@ -34,7 +34,7 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from semdp.paths import CONF_DIR
-from semdp.plan_plots import plot_comparison, plot_plan
+from semdp.reporting.plan_plots import plot_comparison, plot_plan
 from solvers.planner import Comparison, Planner, PlanResult, compare
 from solvers.planner.compare import COLUMNS as COMPARE_COLUMNS
 from solvers.planner.problem.preparation import validate_obstacles
