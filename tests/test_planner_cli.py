@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from semdp import plan as plan_app
 from semdp.benchmarks import planner as planner_bench
+from semdp.cli import plan as plan_app
 from solvers.planner.compare import COLUMNS
 
 
