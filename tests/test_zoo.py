@@ -42,3 +42,28 @@ def test_a_zoo_entry_reproduces_its_recorded_episodes(name: str, tmp_path: Path,
     assert out_dir.is_relative_to(tmp_path / "outputs" / "eval" / name)
     for again, before in zip(metrics["episodes"], recorded["episodes"][:2], strict=True):
         assert (again["return"], again["cost"]) == (before["return"], before["cost"])
+
+
+def test_the_zoo_table_is_rebuilt_from_the_committed_files() -> None:
+    from semdp.reporting.zoo_table import entry_rows, zoo_table
+
+    committed = INDEX.parent / "zoo.md"
+    assert committed.read_text() == zoo_table(entry_rows())
+
+
+def test_the_zoo_table_averages_an_envs_seeds(tmp_path: Path) -> None:
+    from semdp.reporting.zoo_table import entry_rows, zoo_table
+
+    for seed, ret in ((0, 4.0), (1, 6.0)):
+        run = tmp_path / f"r{seed}"
+        run.mkdir()
+        summary = {"return_mean": ret, "return_std": 1.0, "cost_mean": 0.0, "episodes": 50,
+                   "episodes_with_cost": 0, "plans": 5000, "plan_fallbacks": 0}
+        (run / "eval.json").write_text(json.dumps(
+            {"env": "semdp_car_push1", "seed": seed, "env_steps": 200000, "eval": summary}))
+    (tmp_path / "zoo.yaml").write_text("a: r0\nb: r1\n")
+    table = zoo_table(entry_rows(tmp_path / "zoo.yaml"))
+    # mean 5, sample standard deviation sqrt(2), standard error sqrt(2) / sqrt(2) = 1
+    assert "| semdp_car_push1 | 2 | 5.00 ± 1.00 | 0.00 ± 0.00 |" in table
+    assert "| `a` | semdp_car_push1 | 0 | 200,000 | 4.000 ± 1.000 | 0.000 | 0 / 50 | 0 / 5000 |" \
+        in table
