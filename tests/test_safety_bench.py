@@ -1,5 +1,6 @@
-"""``semdp-bench safety`` on a small slice: the adversarial policy's aim (planted layout), zero
-cost under it with the evaluation and the training configuration, and the written table."""
+"""``semdp-bench safety`` on a small slice: the adversarial (hazard-seeking) and wrong-button
+policies' aims (planted layouts), zero cost under them with the evaluation and the training
+configuration, and the written table."""
 
 from __future__ import annotations
 
@@ -22,6 +23,24 @@ def test_adversarial_policy_aims_at_the_nearest_hazard() -> None:
     np.testing.assert_allclose(action, [0.5, 0.0], atol=1e-9)
     with pytest.raises(ValueError, match="policy"):
         make_policy("greedy", env, seed=0)
+
+
+def test_wrong_button_policy_aims_at_the_nearest_button_that_is_not_the_goal() -> None:
+    env = build_semdp_env("mass", "Button1", "eval")
+    assert "buttons" in env.obstacle_kinds and env.unwrapped.task == "button"
+    layout = {"agent": (0.0, 0.0), "agent_yaw": 0.0, "hazards": [], "gremlins": [],
+              "buttons": [(0.6, 0.0), (0.0, 1.2), (-1.5, 1.5), (1.5, -1.5)]}
+    for seed, goal, aim in ((0, 3, [0.3, 0.0]), (2, 0, [0.0, 0.6])):
+        obs, _ = env.reset(seed=seed, options={"layout": layout})
+        assert env.unwrapped.goal_button == goal
+        # the nearest button, unless it is the goal (then the next one), in 2 m units
+        np.testing.assert_allclose(make_policy("wrong_button", env, seed=0)(obs), aim,
+                                   atol=1e-9)
+
+
+def test_the_wrong_button_policy_has_cells_on_the_button_tasks_only() -> None:
+    with pytest.raises(SystemExit, match="no cell"):
+        main(["tasks=Goal1,Push2", "policies=wrong_button"])
 
 
 def test_small_slice_has_no_cost_and_writes_the_table(tmp_path: Path,

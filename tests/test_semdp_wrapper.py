@@ -240,3 +240,53 @@ def test_safety_eval_attributes_violations_to_their_source() -> None:
     fallback = plan(line)
     fallback.fallback = True
     assert classify_window(fallback, obstacle, 0.5) == "planner"
+
+
+BUTTON_LAYOUT = {"agent": [(0.0, 0.0)], "agent_yaw": 0.0, "hazards": [], "gremlins": [],
+                 "buttons": [(1.0, 0.0), (-1.5, 1.5), (1.3, 1.6), (-1.5, -1.5)]}
+
+
+@pytest.mark.parametrize("perception", ["gt", "lidar"])
+def test_semdp_keeps_subgoals_at_a_wrong_button_off_it(perception: str) -> None:
+    """Button1 with button 0 1 m ahead and button 3 the goal (seed 0): subgoals on button 0
+    plan around it and the robot never touches it; the goal button is no obstacle."""
+    from semdp.embedded.shield import SafetyShield
+
+    env = _semdp("sims/SafetyMassButton1-v0", perception=perception,
+                 shield=SafetyShield(perception=perception))
+    obs, _ = env.reset(seed=0, options={"layout": BUTTON_LAYOUT})
+    base = env.unwrapped
+    assert base.goal_button == 3
+    perceived = env.perceive(obs)
+    assert np.linalg.norm(perceived[:, :2] - (1.0, 0.0), axis=1).min() < 0.25
+    assert np.linalg.norm(perceived[:, :2] - (-1.5, -1.5), axis=1).min() > 0.5
+    cost = 0.0
+    for _ in range(20):
+        target = np.array([1.0, 0.0]) - base.robot_position
+        perceived = env.perceive(obs)
+        obs, _, _, _, info = env.step(np.clip(world_to_ego(target, base.robot_heading) / 2, -1, 1))
+        cost += info["cost"]
+        gaps = np.linalg.norm(info["plan"].waypoints[:, None] - perceived[None, :, :2], axis=-1)
+        assert info["plan_escape"] or gaps.min() >= CLEARANCE - 1e-9
+    assert cost == 0.0
+
+
+def test_semdp_grows_the_gremlins_by_their_reach_over_the_window() -> None:
+    from semdp.embedded.perception import gremlin_reach
+
+    env = _semdp("sims/SafetyPointButton1-v0", perception="gt", k=10)
+    layout = {**BUTTON_LAYOUT, "gremlins": [(0.0, 1.0)]}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    base = env.unwrapped
+    perceived = env.perceive(obs)
+    gremlin = perceived[np.argmin(np.linalg.norm(perceived[:, :2] - base.gremlin_xy[0], axis=1))]
+    # 10 low-level steps of the Point (0.2 s) at episode time 0: 0.35 * 0.2 + 0.35
+    assert gremlin[2] == pytest.approx(gremlin_reach(0.0, 0.2)) == pytest.approx(0.42)
+    for _ in range(5):
+        obs, *_ = env.step(np.zeros(2))
+    perceived = env.perceive(obs)
+    gremlin = perceived[np.argmin(np.linalg.norm(perceived[:, :2] - base.gremlin_xy[0], axis=1))]
+    assert gremlin[2] == pytest.approx(0.07, abs=1e-5)  # 1 s in: the transient has decayed
+    # static kinds stay points (the thesis' eps' covers their size)
+    assert np.all(perceived[np.linalg.norm(perceived[:, :2] - base.gremlin_xy[0], axis=1) > 0.01,
+                            2] == 0.0)

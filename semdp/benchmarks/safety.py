@@ -1,15 +1,20 @@
 """``semdp-bench safety``: is the Safety-Embedded MDP safe whatever the high level does?
 
 The thesis' safety argument (§3.5.2) puts safety in the planner, not in the learned policy, so
-it must hold for any subgoal sequence. This drives each robot x task with two high-level
-policies that were never trained, under the evaluation configuration (the env's
-``eval_wrapper``) and the training configuration (``wrapper``), and counts what leaks:
+it must hold for any subgoal sequence. This drives each robot x task (the three Safety Gym task
+families Goal, Button and Push at levels 1 and 2) with high-level policies that were never
+trained, under the evaluation configuration (the env's ``eval_wrapper``) and the training
+configuration (``wrapper``), and counts what leaks:
 
 * ``random``: uniformly random subgoals in the ego frame (+-2 m);
-* ``adversarial``: every subgoal aimed at the nearest hazard (ground truth), 2 m away at most.
+* ``adversarial`` (hazard-seeking): every subgoal aimed at the nearest hazard (ground truth),
+  2 m away at most;
+* ``wrong_button`` (Button tasks only; the other tasks have no such cell): every subgoal aimed
+  at the nearest button that is not the goal button (ground truth), 2 m away at most.
 
-    semdp-bench safety                       # 3 robots x 4 tasks x 2 x 2 cells, 20 episodes
+    semdp-bench safety                       # 3 robots x 6 tasks x 2-3 x 2 cells, 20 episodes
     semdp-bench safety robots=car tasks=Push2 policies=adversarial configs=eval episodes=5
+    semdp-bench safety robots=mass tasks=Button1 policies=wrong_button episodes=5
     semdp-bench safety robots=point tasks=Push1 planner@env.planner=ipopt    # + Hydra overrides
 
 Prints one row per cell (episodes with cost, cost steps, fallback %, escape %, rescue % of the
@@ -38,13 +43,16 @@ from omegaconf import OmegaConf
 
 from semdp.benchmarks.arguments import as_int, parse_args
 from semdp.configs import compose_config
+from semdp.embedded.perception import perceive_obstacles, wrong_buttons
 from semdp.embedded.safety_eval import evaluate_safety
 from semdp.embedded.tracking import world_to_ego
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
 
 ROBOTS = ("point", "car", "mass")
-TASKS = ("Goal1", "Goal2", "Push1", "Push2")
-POLICIES = ("random", "adversarial")
+TASKS = ("Goal1", "Goal2", "Button1", "Button2", "Push1", "Push2")
+POLICIES = ("random", "adversarial", "wrong_button")
+#: Policies that only apply to some tasks (their cells exist for those tasks only).
+POLICY_TASKS: dict[str, tuple[str, ...]] = {"wrong_button": ("Button1", "Button2")}
 CONFIGS = ("eval", "train")
 
 
@@ -64,8 +72,16 @@ class Cell:
 def build_semdp_env(robot: str, task: str, config: str,
                     overrides: tuple[str, ...] = ()) -> SafetyEmbeddedEnv:
     """The SEMDP env ``env=semdp_<robot>_<task>`` as composed by Hydra, with its
-    evaluation (``config="eval"``) or training (``"train"``) wrapper."""
-    cfg = compose_config("train", ["algo=sac", f"env=semdp_{robot}_{task.lower()}", *overrides])
+    evaluation (``config="eval"``) or training (``"train"``) wrapper. A task without its own
+    option (the Button tasks, unless registered) is ``env=semdp_<robot>_push1 env.task=<task>``:
+    the same node with the task replaced."""
+    from semdp.env_products import SEMDP_TASKS
+
+    if task.lower() in SEMDP_TASKS:
+        env = [f"env=semdp_{robot}_{task.lower()}"]
+    else:
+        env = [f"env=semdp_{robot}_push1", f"env.task={task}"]
+    cfg = compose_config("train", ["algo=sac", *env, *overrides])
     env_cfg = OmegaConf.to_container(cfg.env, resolve=True)
     assert isinstance(env_cfg, dict)
     node = env_cfg["eval_wrapper" if config == "eval" else "wrapper"]
@@ -77,22 +93,28 @@ def make_policy(kind: str, env: SafetyEmbeddedEnv, seed: int) -> Callable[[np.nd
     rng = np.random.default_rng(seed)
     if kind == "random":
         return lambda _obs: rng.uniform(-1.0, 1.0, size=2)
-    if kind != "adversarial":
+    if kind not in POLICIES:
         raise ValueError(f"policy must be one of {POLICIES}, got {kind!r}")
     base = env.unwrapped
 
-    def aim_at_nearest_hazard(_obs: np.ndarray) -> np.ndarray:
+    def targets() -> np.ndarray:
+        if kind == "wrong_button":
+            return wrong_buttons(base)
         hazards = np.asarray(base.obstacles(kinds=("hazards",))).reshape(-1, 3)
         if not len(hazards):  # no hazard in this task: aim at the nearest obstacle of any kind
-            hazards = np.asarray(base.obstacles(kinds=env.obstacle_kinds)).reshape(-1, 3)
-        if not len(hazards):
+            hazards = perceive_obstacles(base, np.zeros(0), "gt", env.obstacle_kinds)
+        return hazards
+
+    def aim_at_nearest(_obs: np.ndarray) -> np.ndarray:
+        found = targets()
+        if not len(found):
             return rng.uniform(-1.0, 1.0, size=2)
         position = np.asarray(base.robot_position, dtype=float)
-        nearest = hazards[np.argmin(np.linalg.norm(hazards[:, :2] - position, axis=1)), :2]
+        nearest = found[np.argmin(np.linalg.norm(found[:, :2] - position, axis=1)), :2]
         ego = world_to_ego(nearest - position, base.robot_heading) / env.subgoal_scale
         return np.clip(ego, -1.0, 1.0)
 
-    return aim_at_nearest_hazard
+    return aim_at_nearest
 
 
 def run_cell(cell: Cell) -> dict[str, Any]:
@@ -135,13 +157,13 @@ def _choice(value: str, valid: tuple[str, ...], what: str) -> tuple[str, ...]:
 
 def format_table(rows: list[dict[str, Any]]) -> str:
     """The printed table: one line per cell."""
-    head = (f"{'robot':6} {'task':6} {'policy':11} {'config':6} {'ep w/ cost':>10} "
+    head = (f"{'robot':6} {'task':7} {'policy':12} {'config':6} {'ep w/ cost':>10} "
             f"{'cost steps':>10} {'fallback%':>9} {'escape%':>8} {'rescue%':>8} {'shield%':>8}"
             f" {'hl/s':>6}  sources")
     lines = [head, "-" * len(head)]
     for r in rows:
         lines.append(
-            f"{r['robot']:6} {r['task']:6} {r['policy']:11} {r['config']:6} "
+            f"{r['robot']:6} {r['task']:7} {r['policy']:12} {r['config']:6} "
             f"{r['episodes_with_cost']:>4}/{r['episodes']:<5} {r['cost_steps_total']:>10.0f} "
             f"{100 * r['fallback_rate']:>9.1f} {100 * r['escape_rate']:>8.1f} "
             f"{100 * r['rescue_rate']:>8.1f} {100 * r['shield_rate']:>8.2f} "
@@ -151,20 +173,22 @@ def format_table(rows: list[dict[str, Any]]) -> str:
 
 
 def markdown_table(rows: list[dict[str, Any]], seed: int, episodes: int) -> str:
-    """The table for a README: one row per robot x task, the four policy x config cells as
-    ``episodes with cost / episodes`` and the fallback, escape, rescue and shield rates."""
+    """The table for a README: one row per robot x task, the policy x config cells as
+    ``episodes with cost / episodes`` (– where a policy does not apply) and the fallback,
+    escape, rescue and shield rates (the shield's: lowest-highest cell)."""
+    policies = [p for p in POLICIES if any(r["policy"] == p for r in rows)]
+    heads = [f"{p}, {c}" for p in policies for c in CONFIGS]
     lines = [f"Episodes with cost / episodes (seeds {seed}..{seed + episodes - 1}); fallback, "
-             "escape and rescue % of the plans and shield % of the low-level commands, over "
-             "the four cells; high-level steps/s (mean of the cells).", "",
-             "| robot | task | random, eval | random, train | adversarial, eval | "
-             "adversarial, train | cost steps | fallback % | escape % | rescue % | shield % | "
-             "hl steps/s |", "|" + "---|" * 12]
+             "escape and rescue % of the plans over the row's cells; shield % of the low-level "
+             "commands (lowest-highest cell); high-level steps/s (mean of the cells).", "",
+             f"| robot | task | {' | '.join(heads)} | cost steps | fallback % | escape % | "
+             "rescue % | shield % | hl steps/s |", "|" + "---|" * (len(heads) + 8)]
     cells: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for row in rows:
         cells.setdefault((row["robot"], row["task"]), []).append(row)
     for (robot, task), group in cells.items():
         by = {(r["policy"], r["config"]): r for r in group}
-        shown = [by.get((p, c)) for p in POLICIES for c in CONFIGS]
+        shown = [by.get((p, c)) for p in policies for c in CONFIGS]
         marks = [f"{r['episodes_with_cost']}/{r['episodes']}" if r else "–" for r in shown]
 
         def rate(key: str, rows: list[dict[str, Any]] = group) -> str:
@@ -175,7 +199,8 @@ def markdown_table(rows: list[dict[str, Any]], seed: int, episodes: int) -> str:
             f"| {robot.capitalize()} | {task} | {' | '.join(marks)} | "
             f"{sum(r['cost_steps_total'] for r in group):.0f} | {rate('fallback_rate')} | "
             f"{rate('escape_rate')} | {rate('rescue_rate')} | "
-            f"{100 * sum(r['shield_rate'] for r in group) / len(group):.2f} | "
+            f"{100 * min(r['shield_rate'] for r in group):.2f}-"
+            f"{100 * max(r['shield_rate'] for r in group):.2f} | "
             f"{sum(r['high_level_steps_per_s'] for r in group) / len(group):.0f} |")
     return "\n".join(lines) + "\n"
 
@@ -195,7 +220,11 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(f"semdp-bench safety: {exc}")
     out = Path(args["out"] or f"outputs/bench/safety_{time.strftime('%Y-%m-%d_%H-%M-%S')}")
     cells = [Cell(r, t, p, c, episodes, seed, tuple(overrides))
-             for r in robots for t in tasks for p in policies for c in configs]
+             for r in robots for t in tasks for p in policies for c in configs
+             if t in POLICY_TASKS.get(p, (t,))]
+    if not cells:
+        sys.exit(f"semdp-bench safety: no cell: policies {','.join(policies)} do not apply to "
+                 f"tasks {','.join(tasks)}")
     tic = time.perf_counter()
     if workers == 1:
         rows = [run_cell(c) for c in cells]

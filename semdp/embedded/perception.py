@@ -1,18 +1,164 @@
-"""Obstacle perception for the planner: LiDAR reconstruction (thesis default) or ground truth."""
+"""Obstacle perception for the planner and the safety filter: LiDAR reconstruction (thesis
+default) or ground truth.
+
+What is an obstacle (a cost region), by kind: hazards, vases, pillars and gremlins (thesis
+§3.6.1: not the box, not the goal) and, in the Button tasks (beyond the thesis, whose
+experiments are Goal and Push), every button **but the goal button**: touching another button
+costs (``cost_buttons``), the goal button must be pressed. Two properties of the Button task need
+more than a snapshot of the LiDAR:
+
+* **Buttons and the goal.** The goal is the goal button's centre, so the goal LiDAR channel is
+  that button's contribution to the buttons channel, bin for bin (same position, same
+  arithmetic). :func:`button_frame` zeroes the button bins whose reading equals the goal
+  channel's: what remains is lit by the other buttons (a bin where a nearer wrong button hides
+  the goal button keeps its reading). Ground truth drops the button at the goal position.
+* **The grace period.** After a press the goal moves to another button and for
+  ``BUTTON_RESAMPLING_DELAY`` (10) steps the wrong-button cost is off and the buttons channel is
+  blank. The safety layer does not use the relief: every non-goal button stays a cost region
+  throughout, the just-pressed one included (the robot starts the grace touching it, inside its
+  region, and the planner's and the filter's escape modes take it out before the timer ends).
+  Buttons never move, so a blank channel is read from a :class:`ButtonMemory`: the last lit
+  frame of the episode with the pose it was taken from, in world coordinates. That frame is read
+  whole (its goal may be the button just pressed), so the new goal button is a cost region until
+  the channel lights again: at most 10 steps.
+
+Gremlins move. The replica's law (``sims/safety_gym/world.py`` ``_move_gremlins``) has each
+gremlin track a target circling its placement at 0.35 m, 1 rad/s (0.35 m/s), with a first-order
+lag of 0.09 s; it starts at the placement, 0.35 m from its first target. Per substep ``h`` it
+covers ``(1 - e)`` of its gap to the target (``e = exp(-h / 0.09)``), and that gap shrinks by
+``e`` while the target moves ``0.35 h``: the gap is at most ``D + (0.35 - D) e^k`` after ``k``
+substeps (``D = 0.35 h / (1 - e)``, the steady lag), so the substeps from episode time ``t`` on
+cover at most ``0.35 h`` each plus a geometric tail that sums to ``0.35 exp(-t / 0.09)``.
+**The stated assumption** of the safety layer (:func:`gremlin_reach`): a gremlin seen at ``g``
+at episode time ``t`` is, ``s`` seconds later, within ``0.35 s + 0.35 exp(-t / 0.09)`` of
+``g``: a speed bound of 0.35 m/s plus the start-up transient's allowance (0.35 m at the reset,
+under 1 mm after 0.55 s). Neither the circle nor the velocity is used, so the LiDAR, which gives
+positions only, suffices. The planner's gremlin discs grow by the reach over the window
+(``horizon_s``: its k low-level steps, after which the next plan sees the gremlin anew), the
+filter's by the reach to each point of its certificate (:mod:`semdp.embedded.shield`).
+tests/test_shield.py checks the bound against the simulator and plants gremlins driven into the
+robot's path.
+"""
 
 from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from sims.safety_gym.perception import obstacles_from_lidar
 
-#: Object types the planner avoids (thesis §3.6.1: not the box, not the goal).
-OBSTACLE_KINDS: tuple[str, ...] = ("hazards", "vases", "pillars", "gremlins")
+#: Object types the planner and the filter avoid (thesis §3.6.1: not the box, not the goal;
+#: buttons: every button but the goal button).
+OBSTACLE_KINDS: tuple[str, ...] = ("hazards", "vases", "pillars", "gremlins", "buttons")
 
 #: ``lidar``: the thesis' reconstruction (bin-centre bearing); ``lidar_refined``: the same peaks
 #: at the bearing implied by the aliasing of the neighbouring bins (exact for an isolated object;
 #: beyond the thesis); ``gt``: the simulator's ground truth ("Ours w/ gt").
 PERCEPTION_MODES: tuple[str, ...] = ("lidar", "lidar_refined", "gt")
+
+#: A gremlin's speed bound (m/s) once its start-up transient has decayed: its target circles at
+#: 0.35 m and 1 rad/s.
+GREMLIN_SPEED = 0.35
+#: The gremlin's tracking lag (s) and its first target's distance from its placement (m).
+GREMLIN_LAG_S = 0.09
+GREMLIN_START_GAP = 0.35
+#: A button reading at most this far from the goal channel's is the goal button's.
+_SAME_READING = 1e-9
+
+
+def gremlin_allowance(t: float) -> float:
+    """What the start-up transient adds to a gremlin's reach from episode time ``t`` (s) on:
+    ``0.35 exp(-t / 0.09)`` m (module docstring)."""
+    return GREMLIN_START_GAP * math.exp(-max(float(t), 0.0) / GREMLIN_LAG_S)
+
+
+def gremlin_reach(t: float, s: float) -> float:
+    """How far (m) a gremlin seen at episode time ``t`` can be ``s`` seconds later (the stated
+    assumption, module docstring): ``0.35 s + 0.35 exp(-t / 0.09)``."""
+    return GREMLIN_SPEED * max(float(s), 0.0) + gremlin_allowance(t)
+
+
+def episode_time(env: Any) -> float:
+    """The env's episode time (its ``sim_time``; 0 if it has none: the largest allowance)."""
+    return float(getattr(env, "sim_time", 0.0))
+
+
+@dataclass(frozen=True)
+class LidarFrame:
+    """One 16-bin LiDAR channel with the robot pose it was read from (world frame)."""
+
+    readings: np.ndarray
+    position: np.ndarray
+    heading: float
+
+
+class ButtonMemory:
+    """The last lit buttons LiDAR frame of the current episode (module docstring: the channel is
+    blank while the button timer runs; buttons never move, so an old frame stays true).
+
+    :meth:`forget` at every reset; a frame also counts as stale when it belongs to another env
+    or to a later step count than the env's (a new episode).
+    """
+
+    def __init__(self) -> None:
+        self._frame: LidarFrame | None = None
+        self._owner: int | None = None
+        self._steps = -1
+
+    def forget(self) -> None:
+        """Drop the remembered frame (a new episode)."""
+        self._frame, self._owner, self._steps = None, None, -1
+
+    def remember(self, env: Any, frame: LidarFrame) -> None:
+        """Keep ``frame``, read from ``env`` now."""
+        self._frame, self._owner, self._steps = frame, id(env), int(getattr(env, "steps", 0))
+
+    def recall(self, env: Any) -> LidarFrame | None:
+        """The remembered frame if it is from ``env``'s current episode, else None."""
+        if self._frame is None or self._owner != id(env) or \
+                self._steps > int(getattr(env, "steps", 0)):
+            return None
+        return self._frame
+
+
+def goal_free_button_readings(env: Any, obs: np.ndarray) -> np.ndarray:
+    """The buttons LiDAR channel without the bins the goal button explains (module docstring)."""
+    readings = np.array(obs[env.obs_slices["buttons_lidar"]], dtype=np.float64)
+    if "goal_lidar" in env.obs_slices:
+        goal = np.asarray(obs[env.obs_slices["goal_lidar"]], dtype=np.float64)
+        readings[(goal > 0.0) & (np.abs(readings - goal) <= _SAME_READING)] = 0.0
+    return readings
+
+
+def button_frame(env: Any, obs: np.ndarray, memory: ButtonMemory | None = None
+                 ) -> LidarFrame | None:
+    """The buttons LiDAR frame to read the wrong buttons from, or None without buttons.
+
+    The current channel, lit: its bins less the goal button's (``memory`` keeps the whole
+    channel); blank: ``memory``'s frame of this episode, whole (module docstring).
+    """
+    if "buttons_lidar" not in env.obs_slices:
+        return None
+    raw = np.asarray(obs[env.obs_slices["buttons_lidar"]], dtype=np.float64)
+    if raw.max() > 0.0:
+        position = np.asarray(env.robot_position, dtype=np.float64)
+        heading = float(env.robot_heading)
+        if memory is not None:
+            memory.remember(env, LidarFrame(raw.copy(), position, heading))
+        return LidarFrame(goal_free_button_readings(env, obs), position, heading)
+    return memory.recall(env) if memory is not None else None
+
+
+def wrong_buttons(env: Any) -> np.ndarray:
+    """Ground truth: ``[x, y, r]`` of every button but the goal button."""
+    buttons = np.asarray(env.obstacles(kinds=("buttons",)), dtype=np.float64).reshape(-1, 3)
+    if not len(buttons):
+        return buttons
+    goal = np.asarray(env.goal_position, dtype=np.float64)
+    return buttons[np.linalg.norm(buttons[:, :2] - goal, axis=1) > 1e-9]
 
 
 def perceive_obstacles(
@@ -22,44 +168,67 @@ def perceive_obstacles(
     kinds: tuple[str, ...] = OBSTACLE_KINDS,
     use_radii: bool = False,
     lidar_max_dist: float = 3.0,
+    memory: ButtonMemory | None = None,
+    horizon_s: float = 0.0,
 ) -> np.ndarray:
     """Obstacles as an (m, 3) array of [x, y, radius] for the planner.
 
     Args:
         env: the unwrapped Safety Gym replica env (``robot_position``, ``robot_heading``,
-            ``obs_slices``, ``obstacles``).
+            ``obs_slices``, ``obstacles``, ``goal_position``, ``sim_time``).
         obs: the env's current flat observation.
         mode: ``"lidar"`` reconstructs positions from each type's 16 LiDAR bins (the thesis'
             default, noisy: bin-centre angle, distance (1 - reading) * max);
             ``"lidar_refined"`` places each peak at the bearing its neighbours' aliasing implies
             (exact for an isolated object); ``"gt"`` reads the simulator's ground truth
             ("Ours w/ gt").
-        kinds: object types that are obstacles.
+        kinds: object types that are obstacles (buttons: all but the goal button).
         use_radii: ground truth only: keep the objects' radii (clearance eps' + r). The thesis
             plans around centres (r = 0) and sets eps' = 0.5 m to cover the object sizes.
         lidar_max_dist: LiDAR range (Safety Gym: 3 m).
+        memory: LiDAR only: the buttons channel's memory (read while the channel is blank,
+            module docstring); None reads the current channel only.
+        horizon_s: each gremlin's radius grows by its reach (:func:`gremlin_reach`) over this
+            many seconds: the time the plan is followed before the next one (module
+            docstring); 0 treats them as static.
     """
-    if mode == "gt":
-        obstacles = np.asarray(env.obstacles(kinds=kinds), dtype=np.float64).reshape(-1, 3)
-        if not use_radii:
-            obstacles = obstacles.copy()
-            obstacles[:, 2] = 0.0
-        return obstacles
     if mode not in PERCEPTION_MODES:
         raise ValueError(f"perception mode must be one of {PERCEPTION_MODES}, got {mode!r}")
-    position = np.asarray(env.robot_position, dtype=np.float64)
-    heading = float(env.robot_heading)
-    points = []
+    rows = []
     for kind in kinds:
-        key = f"{kind}_lidar"
-        if key in env.obs_slices:
-            found = obstacles_from_lidar(
-                obs[env.obs_slices[key]], position, heading, max_dist=lidar_max_dist,
-                refine_bearing=mode == "lidar_refined",
-            )
-            if len(found):
-                points.append(np.asarray(found, dtype=np.float64).reshape(-1, 2))
-    if not points:
+        if mode == "gt":
+            if kind == "buttons":
+                found = wrong_buttons(env)
+            else:
+                found = np.asarray(env.obstacles(kinds=(kind,)), dtype=np.float64).reshape(-1, 3)
+            found = found.copy()
+            if not use_radii:
+                found[:, 2] = 0.0
+        else:
+            found = _lidar_obstacles(env, obs, kind, mode, lidar_max_dist, memory)
+        if kind == "gremlins" and horizon_s > 0.0 and len(found):
+            found[:, 2] += gremlin_reach(episode_time(env), horizon_s)
+        if len(found):
+            rows.append(found)
+    if not rows:
         return np.zeros((0, 3))
-    centres = np.concatenate(points)
-    return np.hstack([centres, np.zeros((len(centres), 1))])
+    return np.concatenate(rows)
+
+
+def _lidar_obstacles(env: Any, obs: np.ndarray, kind: str, mode: str, max_dist: float,
+                     memory: ButtonMemory | None) -> np.ndarray:
+    """``[x, y, 0]`` rows of one kind's LiDAR peaks (buttons: :func:`button_frame`)."""
+    if kind == "buttons":
+        frame = button_frame(env, obs, memory)
+    elif f"{kind}_lidar" in env.obs_slices:
+        frame = LidarFrame(obs[env.obs_slices[f"{kind}_lidar"]],
+                           np.asarray(env.robot_position, dtype=np.float64),
+                           float(env.robot_heading))
+    else:
+        frame = None
+    if frame is None:
+        return np.zeros((0, 3))
+    found = obstacles_from_lidar(frame.readings, frame.position, frame.heading,
+                                 max_dist=max_dist, refine_bearing=mode == "lidar_refined")
+    found = np.asarray(found, dtype=np.float64).reshape(-1, 2)
+    return np.hstack([found, np.zeros((len(found), 1))])

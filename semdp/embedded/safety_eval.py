@@ -40,6 +40,7 @@ from omegaconf import OmegaConf
 
 from semdp.configs import compose_config
 from semdp.embedded.follower_eval import point_to_polyline_distance
+from semdp.embedded.perception import perceive_obstacles
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
 from semdp.run_config import load_run_config
 
@@ -105,7 +106,8 @@ def evaluate_safety(
         obs, _ = env.reset(seed=seed + episode)
         ret = cost = 0.0
         while True:
-            true_obstacles = np.asarray(base.obstacles(kinds=env.obstacle_kinds)).reshape(-1, 3)
+            true_obstacles = perceive_obstacles(base, obs, "gt", env.obstacle_kinds,
+                                                use_radii=True)
             obs, reward, terminated, truncated, info = env.step(policy(obs))
             plan = info["plan"]
             plans += 1

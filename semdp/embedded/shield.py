@@ -12,10 +12,27 @@ a cost region it can see, whatever the subgoals (a model-predictive safety filte
 braking backup).
 
 Cost regions are discs around the obstacles the planner sees, by kind: hazards cost when the
-root node is inside them; vases, pillars and gremlins when the robot's outline touches them,
-i.e. the root within ``object radius + robot extent``. With ``perception="lidar"`` the
-obstacles are re-read from the LiDAR at every checked step. A LiDAR bin gives an object's range
-exactly but its bearing only to within half a bin (11.25°), so a region placed at the bin
+root node is inside them; vases, pillars, gremlins and the buttons other than the goal button
+when the robot's outline touches them, i.e. the root within ``object radius + robot extent``
+(:mod:`semdp.embedded.perception`: which button is the goal, the buttons' memory while their
+LiDAR channel is blank after a press, and the grace period). Gremlins move: a region row is
+``[x, y, R, v]`` and the point of the certificate ``s`` seconds ahead must keep ``R + v s`` from
+the centre; a gremlin's row has ``v`` = 0.35 m/s and its R includes the start-up allowance
+(:func:`~semdp.embedded.perception.gremlin_reach`: the stated assumption), every other kind has
+``v = 0``. Past the point where the braking manoeuvre has come to rest, ``s`` stops growing
+:data:`GREMLIN_HOLD_S` (0.8 s) later: a certified robot stays clear of every gremlin until
+0.8 s after it has stopped (a robot at rest cannot be certified against a gremlin forever
+from one reading; a gremlin that keeps coming makes the next certificates fail, and the filter
+moves the robot away). When no option is certified near a gremlin, the escape gets away from
+where every region is now: each option held for :data:`ESCAPE_HOLD_S` (0.3 s) before braking
+(one step from rest gets away from nothing), the one that comes to rest farthest from every
+region, among the options that keep clear of where every region is now (a hazard is certain
+cost, a gremlin's reach only a bound); without moving regions the escape is the best one-step
+certificate, as before.
+
+With ``perception="lidar"`` the obstacles are re-read from the LiDAR at every checked step (the
+buttons, while their channel is blank, from the last lit frame). A LiDAR bin gives an object's
+range exactly but its bearing only to within half a bin (11.25°), so a region placed at the bin
 centre can sit up to ``2 d sin(π/32) ≈ 0.196 d`` from the true object at range ``d``: more than
 the margin beyond 0.26 m. With ``lidar_bearing_bound=True`` (the default) every lit bin is a
 candidate object (an aliasing neighbour of a real object only adds a region farther away or at
@@ -52,7 +69,17 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from semdp.embedded.perception import OBSTACLE_KINDS, PERCEPTION_MODES, perceive_obstacles
+from semdp.embedded.perception import (
+    GREMLIN_SPEED,
+    OBSTACLE_KINDS,
+    PERCEPTION_MODES,
+    ButtonMemory,
+    LidarFrame,
+    button_frame,
+    episode_time,
+    gremlin_allowance,
+    perceive_obstacles,
+)
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from sims.safety_gym.perception import BINS, obstacles_from_lidar
 
@@ -64,8 +91,8 @@ BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
 
-#: Cost-region radius of each kind of object at the root node, before the robot's extent.
-_CONTACT_KINDS = ("vases", "pillars", "gremlins")
+#: Kinds whose cost is a contact with the robot's outline: their regions add the robot's extent.
+_CONTACT_KINDS = ("vases", "pillars", "gremlins", "buttons")
 
 #: The ways :meth:`SafetyShield.filter` can go: no cost region within reach (``"unchecked"``),
 #: the action certified (``"kept"``), braking (``"braked"``), the best escape (``"escaped"``).
@@ -141,6 +168,12 @@ class SafetyShield:
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that filters
     #: unpickled from a checkpoint have it too.
     recorder: Callable[[FilterRecord], None] | None = None
+    #: The buttons LiDAR channel's memory (:class:`~semdp.embedded.perception.ButtonMemory`),
+    #: made on first use; class-level so that filters pickled before it existed have it.
+    _buttons: ButtonMemory | None = None
+    #: The last escape from a moving region (kept while it is as good as any; None after any
+    #: other branch). Class-level, for filters pickled before it existed.
+    _last_escape: np.ndarray | None = None
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
@@ -177,55 +210,96 @@ class SafetyShield:
         """Zero the counters."""
         self.stats = ShieldStats()
 
+    @property
+    def button_memory(self) -> ButtonMemory:
+        """The memory of the buttons LiDAR channel (forgotten by :meth:`new_episode`)."""
+        if self._buttons is None:
+            self._buttons = ButtonMemory()
+        return self._buttons
+
+    def new_episode(self) -> None:
+        """Forget what belongs to the last episode (the buttons' memory)."""
+        self.button_memory.forget()
+
+    @staticmethod
+    def _motion(base: Any, kind: str) -> tuple[float, float]:
+        """``(extra radius, growth rate)`` of ``kind``'s regions: a gremlin's start-up
+        allowance and speed bound (:func:`~semdp.embedded.perception.gremlin_reach`); 0, 0 for
+        the static kinds."""
+        if kind != "gremlins":
+            return 0.0, 0.0
+        return gremlin_allowance(episode_time(base)), GREMLIN_SPEED
+
     def cost_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
-        """``(m, 3)`` rows ``[x, y, R]``: the cost regions plus the margin."""
+        """``(m, 4)`` rows ``[x, y, R, v]``: the cost regions plus the margin, growing at
+        ``v`` m/s (moving gremlins; 0 for the static kinds)."""
         if self.perception == "lidar" and self.lidar_bearing_bound:
             return self._bounded_lidar_regions(base, obs)
         rows = []
         for kind in self.kinds:
             if kind not in self._radii:
                 continue
-            found = perceive_obstacles(base, obs, self.perception, kinds=(kind,))
+            found = perceive_obstacles(base, obs, self.perception, kinds=(kind,),
+                                       memory=self.button_memory)
             if len(found):
+                extra, speed = self._motion(base, kind)
                 found = np.array(found, dtype=np.float64)
-                found[:, 2] = self._radii[kind] + self.margin
-                rows.append(found)
-        return np.concatenate(rows) if rows else np.zeros((0, 3))
+                found[:, 2] = self._radii[kind] + self.margin + extra
+                rows.append(np.column_stack([found, np.full(len(found), speed)]))
+        return np.concatenate(rows) if rows else np.zeros((0, 4))
 
-    def _lidar_channels(self, base: Any, obs: np.ndarray) -> Iterator[tuple[float, np.ndarray]]:
-        """``(cost radius + margin, 16 readings)`` of each filtered kind the robot senses."""
+    def _lidar_channels(self, base: Any, obs: np.ndarray
+                        ) -> Iterator[tuple[float, float, LidarFrame]]:
+        """``(cost radius + margin, growth rate, frame)`` of each filtered kind the robot senses
+        (buttons: :func:`~semdp.embedded.perception.button_frame`, possibly remembered)."""
+        position = np.asarray(base.robot_position, dtype=np.float64)
+        heading = float(base.robot_heading)
         for kind in self.kinds:
             key = f"{kind}_lidar"
-            if kind in self._radii and key in base.obs_slices:
-                yield self._radii[kind] + self.margin, obs[base.obs_slices[key]]
+            if kind not in self._radii or key not in base.obs_slices:
+                continue
+            if kind == "buttons":
+                frame = button_frame(base, obs, self.button_memory)
+                if frame is None:
+                    continue
+            else:
+                frame = LidarFrame(obs[base.obs_slices[key]], position, heading)
+            extra, speed = self._motion(base, kind)
+            yield self._radii[kind] + self.margin + extra, speed, frame
 
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """Every lit bin of each kind's LiDAR, grown by its bearing error bound."""
-        position = np.asarray(base.robot_position, dtype=np.float64)
-        heading = float(base.robot_heading)
         rows = []
-        for radius, readings in self._lidar_channels(base, obs):
-            found = obstacles_from_lidar(readings, position, heading, max_dist=LIDAR_RANGE,
-                                         peaks_only=False)
+        for radius, speed, frame in self._lidar_channels(base, obs):
+            found = obstacles_from_lidar(frame.readings, frame.position, frame.heading,
+                                         max_dist=LIDAR_RANGE, peaks_only=False)
             if len(found):
-                ranges = np.linalg.norm(found - position, axis=1)
-                rows.append(np.column_stack([found, radius + BEARING_ERROR_PER_METRE * ranges]))
-        return np.concatenate(rows) if rows else np.zeros((0, 3))
+                ranges = np.linalg.norm(found - frame.position, axis=1)
+                rows.append(np.column_stack([found, radius + BEARING_ERROR_PER_METRE * ranges,
+                                             np.full(len(found), speed)]))
+        return np.concatenate(rows) if rows else np.zeros((0, 4))
 
-    def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
-        """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
-        each kind (exact ranges; the bearing allowance grows with range, hence the factor)."""
+    def _lidar_lower_bound(self, base: Any, obs: np.ndarray, horizon_s: float) -> float:
+        """A lower bound of every LiDAR region's ``distance - R - v horizon_s`` from the
+        nearest lit bin of each kind (exact ranges; the bearing allowance grows with range,
+        hence the factor); ``-inf`` when a frame was read from elsewhere (remembered)."""
         bound = np.inf
         shrink = 1.0 - BEARING_ERROR_PER_METRE if self.lidar_bearing_bound else 1.0
-        for radius, readings in self._lidar_channels(base, obs):
-            reading = float(readings.max())
-            if reading > 0.0:
-                bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius)
+        position = np.asarray(base.robot_position, dtype=np.float64)
+        for radius, speed, frame in self._lidar_channels(base, obs):
+            reading = float(frame.readings.max())
+            if reading <= 0.0:
+                continue
+            if not np.array_equal(frame.position, position):
+                return -np.inf
+            bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius
+                        - speed * horizon_s)
         return bound
 
     def clearance(self, state: RobotState, first: np.ndarray, regions: np.ndarray) -> float:
         """Smallest ``distance - R`` to ``regions`` over ``first`` then the braking manoeuvre,
-        by the bound robot's model: the filter's certificate (>= 0: certified)."""
+        by the bound robot's model: the filter's certificate (>= 0: certified). ``regions``:
+        rows ``[x, y, R]`` or ``[x, y, R, v]`` (R grows by ``v`` per second ahead)."""
         if self._model is None:
             raise RuntimeError("bind() the filter to an env first")
         return self._clearance(self._model, state, first, regions)
@@ -233,12 +307,16 @@ class SafetyShield:
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
                    regions: np.ndarray) -> float:
         """Smallest ``distance - R`` over ``first`` then the braking manoeuvre."""
-        points = np.empty((model.horizon + 1, 2))
-        s = model.step(state, first)
-        points[0] = (s.x, s.y)
-        points[1:] = model.brake_path(s)
+        return float(self._gaps(model, _trajectory(model, state, first), regions).min())
+
+    @staticmethod
+    def _gaps(model: RobotModel, points: np.ndarray, regions: np.ndarray) -> np.ndarray:
+        """``distance - R`` of every point of a certificate trajectory to every region."""
         gaps = np.linalg.norm(points[:, None, :] - regions[None, :, :2], axis=-1)
-        return float((gaps - regions[None, :, 2]).min())
+        radius = regions[None, :, 2]
+        if regions.shape[1] > 3 and regions[:, 3].any():
+            radius = radius + _seconds_ahead(model, points)[:, None] * regions[None, :, 3]
+        return gaps - radius
 
     def filter(self, action: np.ndarray, base: Any, obs: np.ndarray) -> np.ndarray:
         """The action to apply: ``action`` if certified, else braking, else the best escape.
@@ -264,20 +342,23 @@ class SafetyShield:
         model = self._model
         assert model is not None
         self.stats.steps += 1
+        last_escape, self._last_escape = self._last_escape, None
         body = base.body
         state = RobotState(body.position.x, body.position.y, body.velocity.x, body.velocity.y,
                            body.angle, body.angular_velocity)
         reach = model.stopping_reach(state) + 0.1
-        if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
+        ahead = _step_seconds(model) * (model.horizon + 1)  # the certificate's last point
+        if self.perception == "lidar" and self._lidar_lower_bound(base, obs, ahead) >= reach:
             return action  # nothing any lit bin could hold is within reach: no reconstruction
         regions = self.cost_regions(base, obs)
         if not len(regions):
             return action
-        distance = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
+        distance = (np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
+                    - ahead * regions[:, 3])
         near = distance < reach
         if not near.any():
             return action
-        regions = regions[near]
+        everywhere, regions = regions, regions[near]
         self.stats.checked += 1
         if self._clearance(model, state, action, regions) >= 0.0:
             return action
@@ -288,7 +369,88 @@ class SafetyShield:
         self.stats.escaped += 1
         options = [brake, *model.escapes]
         scores = [self._clearance(model, state, a, regions) for a in options]
-        return np.asarray(options[int(np.argmax(scores))], dtype=np.asarray(action).dtype)
+        best = int(np.argmax(scores))
+        if scores[best] < 0.0 and regions[:, 3].any():
+            best = self._escape_moving(model, state, options, regions, everywhere, last_escape)
+        return np.asarray(options[best], dtype=np.asarray(action).dtype)
+
+    def _escape_moving(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
+                       regions: np.ndarray, everywhere: np.ndarray,
+                       last: np.ndarray | None) -> int:
+        """The escape among ``options`` when a moving region (a gremlin) is near and none is
+        certified. A gremlin's reach grows the same way in every direction and with every
+        second, so it cannot rank ways out (a longer manoeuvre always scores worse); the escape
+        gets away from where every region is now instead: each option held for
+        :data:`ESCAPE_HOLD_S` before braking (one step from rest gets away from nothing), scored
+        by the clearance of the point where it comes to rest from every region without growth
+        (a manoeuvre that goes deeper into a region than the robot already is scores below any
+        that does not), among the options whose one step and braking keep clear of where every
+        region is now if there are any (a hazard is certain cost). The last escape is kept while
+        it scores within :data:`_KEEP_SLACK` of the best, so that the robot does not dither
+        between ways out."""
+        now, here = everywhere.copy(), regions.copy()
+        now[:, 3] = here[:, 3] = 0.0
+        hold = max(1, round(ESCAPE_HOLD_S / _step_seconds(model)))
+        present = [self._clearance(model, state, a, here) for a in options]
+        # a manoeuvre may not go deeper into a region than the robot already is
+        inside = float((np.linalg.norm(now[:, :2] - (state.x, state.y), axis=1) - now[:, 2]).min())
+        floor = min(inside, 0.0) - _ESCAPE_SLACK
+        away = []
+        for a in options:
+            points = _trajectory(model, state, a, hold)
+            gaps = self._gaps(model, points, now).min(axis=1)
+            away.append(float(gaps[-1]) if gaps.min() >= floor else float(gaps.min()) - 1e3)
+        candidates = [i for i, score in enumerate(present) if score >= 0.0] or \
+            list(range(len(options)))
+        best = max(candidates, key=away.__getitem__)
+        if last is not None:  # keep going the way the last escape went while it is as good
+            for i in candidates:
+                if np.array_equal(options[i], last) and away[i] >= away[best] - _KEEP_SLACK:
+                    best = i
+        self._last_escape = np.asarray(options[best])
+        return best
+
+
+#: How long (s) an escape from a moving region is held in its score before braking.
+ESCAPE_HOLD_S = 0.3
+#: How much deeper (m) than the robot already is an escape may go into a region.
+_ESCAPE_SLACK = 0.01
+#: How much worse (m) than the best the last escape may score and still be kept.
+_KEEP_SLACK = 0.002
+
+
+def _trajectory(model: RobotModel, state: RobotState, first: np.ndarray,
+                hold: int = 1) -> np.ndarray:
+    """Root positions ``(hold + horizon, 2)``: ``first`` for ``hold`` steps, then braking."""
+    points = np.empty((model.horizon + hold, 2))
+    s = state
+    for i in range(hold):
+        s = model.step(s, first)
+        points[i] = (s.x, s.y)
+    points[hold:] = model.brake_path(s)
+    return points
+
+
+def _step_seconds(model: RobotModel) -> float:
+    """The model's env step (s)."""
+    return float(model.h * model.substeps)  # type: ignore[attr-defined]
+
+
+#: How long (s) a certificate keeps the robot clear of a gremlin's reach once its braking
+#: manoeuvre has brought it to rest (module docstring).
+GREMLIN_HOLD_S = 0.8
+#: The braking manoeuvre has come to rest where the rest of it covers less than this (m).
+_AT_REST = 0.005
+
+
+def _seconds_ahead(model: RobotModel, points: np.ndarray) -> np.ndarray:
+    """The time (s) at which a moving region is checked against each certificate point: its
+    own time ``(i + 1) dt``, at most :data:`GREMLIN_HOLD_S` past the time the manoeuvre has
+    come to rest."""
+    ahead = _step_seconds(model) * np.arange(1, len(points) + 1)
+    remaining = np.linalg.norm(points - points[-1], axis=1)
+    rest = int(np.argmax(remaining < _AT_REST))
+    return np.minimum(ahead, ahead[rest] + GREMLIN_HOLD_S)
 
 
 class ShieldedEnv(gym.Wrapper):
@@ -308,6 +470,7 @@ class ShieldedEnv(gym.Wrapper):
         """Reset and bind the filter to the new episode's objects."""
         obs, info = self.env.reset(seed=seed, options=options)
         self.shield.bind(self.env.unwrapped)
+        self.shield.new_episode()
         self._obs = obs
         return obs, info
 

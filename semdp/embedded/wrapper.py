@@ -11,7 +11,12 @@ import gymnasium as gym
 import numpy as np
 
 from semdp.embedded.follower import Follower, PolicyFollower, default_follower
-from semdp.embedded.perception import OBSTACLE_KINDS, PERCEPTION_MODES, perceive_obstacles
+from semdp.embedded.perception import (
+    OBSTACLE_KINDS,
+    PERCEPTION_MODES,
+    ButtonMemory,
+    perceive_obstacles,
+)
 from semdp.embedded.shield import SafetyShield
 from semdp.embedded.tracking import ego_to_world, select_tracking_index
 from solvers.planner import SafeTrajectoryPlanner
@@ -107,7 +112,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         perception: ``"lidar"`` (default, reconstructed from the LiDAR bins),
             ``"lidar_refined"`` (bearings from the bins' aliasing) or ``"gt"``
             (:data:`semdp.embedded.perception.PERCEPTION_MODES`).
-        obstacle_kinds: object types the planner avoids.
+        obstacle_kinds: object types the planner avoids (buttons: all but the goal button;
+            gremlins: grown by their speed bound over the window's k low-level steps;
+            :mod:`semdp.embedded.perception`).
         brake_steps: the last ``brake_steps`` low-level steps of each window track the robot's
             current position (the follower brakes), so each window ends slow; 0 = off (thesis).
         draw_plan: pass the plan and subgoal to the env's renderer overlay.
@@ -125,6 +132,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that envs
     #: unpickled from a checkpoint have it too.
     recorder: Callable[[LowLevelRecord], None] | None = None
+    #: The planner's memory of the buttons LiDAR channel, made on first use; class-level so
+    #: that envs pickled before it existed have it.
+    _buttons: ButtonMemory | None = None
 
     def __init__(
         self,
@@ -192,7 +202,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
 
     def counters(self) -> dict[str, float]:
         """The lifetime step counts and :attr:`timing` (an evaluation helper process reports
-        its share with these; :mod:`semdp.algos.eval_episodes`)."""
+        its share with these; :mod:`semdp.evaluation.vector_episodes`)."""
         return {**self.timing, "high_level_steps": float(self.high_level_steps),
                 "low_level_steps": float(self.low_level_steps)}
 
@@ -208,8 +218,28 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         obs, info = self.env.reset(seed=seed, options=options)
         self._obs = obs
         self._fresh = True  # no warm start from the previous episode's plan
+        self.button_memory.forget()
+        if self.shield is not None:
+            self.shield.new_episode()
         self._record_frame()
         return obs, info
+
+    @property
+    def button_memory(self) -> ButtonMemory:
+        """The planner's memory of the buttons LiDAR channel (Button tasks; forgotten at every
+        reset)."""
+        if self._buttons is None:
+            self._buttons = ButtonMemory()
+        return self._buttons
+
+    def perceive(self, obs: np.ndarray) -> np.ndarray:
+        """The planner's obstacles ``(m, 3)`` for observation ``obs`` (Eq. 3.3's set): the
+        perceived objects of :attr:`obstacle_kinds`, the gremlins grown by their speed bound
+        over the window's k low-level steps."""
+        base = self.env.unwrapped
+        window_s = self.k * float(getattr(getattr(base, "robot", None), "dt", 0.0))
+        return perceive_obstacles(base, obs, self.perception, self.obstacle_kinds,
+                                  memory=self.button_memory, horizon_s=window_s)
 
     def _record_frame(self) -> None:
         if self.frame_every and getattr(self.env.unwrapped, "render_mode", None) == "rgb_array":
@@ -251,7 +281,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         t0 = time.perf_counter()
         start = np.asarray(base.robot_position, dtype=np.float64).copy()
         subgoal = self.subgoal_of(action)
-        obstacles = perceive_obstacles(base, self._obs, self.perception, self.obstacle_kinds)
+        obstacles = self.perceive(self._obs)
         t1 = time.perf_counter()
         plan = self.planner.plan(start, subgoal, obstacles, warm_start=not self._fresh)
         t2 = time.perf_counter()
