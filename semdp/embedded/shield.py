@@ -20,15 +20,15 @@ LiDAR channel is blank after a press, and the grace period). Gremlins move: a re
 the centre; a gremlin's row has ``v`` = 0.35 m/s and its R includes the start-up allowance
 (:func:`~semdp.embedded.perception.gremlin_reach`: the stated assumption), every other kind has
 ``v = 0``. Past the point where the braking manoeuvre has come to rest, ``s`` stops growing
-:data:`GREMLIN_HOLD_S` (0.8 s) later: a certified robot stays clear of every gremlin until
-0.8 s after it has stopped (a robot at rest cannot be certified against a gremlin forever
-from one reading; a gremlin that keeps coming makes the next certificates fail, and the filter
-moves the robot away). When no option is certified near a gremlin, the escape gets away from
-where every region is now: each option held for :data:`ESCAPE_HOLD_S` (0.3 s) before braking
-(one step from rest gets away from nothing), the one that comes to rest farthest from every
-region, among the options that keep clear of where every region is now (a hazard is certain
-cost, a gremlin's reach only a bound); without moving regions the escape is the best one-step
-certificate, as before.
+``GREMLIN_HOLD_S`` (0.8 s, :mod:`semdp.embedded.shield_motion`) later: a certified robot stays
+clear of every gremlin until 0.8 s after it has stopped (a robot at rest cannot be certified
+against a gremlin forever from one reading; a gremlin that keeps coming makes the next
+certificates fail, and the filter moves the robot away). When no option is certified near a
+gremlin, the escape gets away from where every region is now: each option held for
+``ESCAPE_HOLD_S`` (0.3 s) before braking (one step from rest gets away from nothing), the one
+that comes to rest farthest from every region, among the options that keep clear of where every
+region is now (a hazard is certain cost, a gremlin's reach only a bound); without moving regions
+the escape is the best one-step certificate, as before.
 
 With ``perception="lidar"`` the obstacles are re-read from the LiDAR at every checked step (the
 buttons, while their channel is blank, from the last lit frame). A LiDAR bin gives an object's
@@ -63,7 +63,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -81,6 +80,15 @@ from semdp.embedded.perception import (
     perceive_obstacles,
 )
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
+from semdp.embedded.shield_motion import (
+    ESCAPE_HOLD_S,
+    ESCAPE_SLACK,
+    KEEP_SLACK,
+    seconds_ahead,
+    step_seconds,
+    trajectory,
+)
+from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
 from sims.safety_gym.perception import BINS, obstacles_from_lidar
 
 #: Safety Gym's LiDAR range (m), as the reconstruction assumes.
@@ -93,57 +101,6 @@ FALLBACKS = ("escape", "brake")
 
 #: Kinds whose cost is a contact with the robot's outline: their regions add the robot's extent.
 _CONTACT_KINDS = ("vases", "pillars", "gremlins", "buttons")
-
-#: The ways :meth:`SafetyShield.filter` can go: no cost region within reach (``"unchecked"``),
-#: the action certified (``"kept"``), braking (``"braked"``), the best escape (``"escaped"``).
-FILTER_BRANCHES = ("unchecked", "kept", "braked", "escaped")
-
-
-@dataclass
-class ShieldStats:
-    """Counts since the last :meth:`SafetyShield.reset_stats`."""
-
-    steps: int = 0
-    checked: int = 0
-    braked: int = 0
-    escaped: int = 0
-
-
-@dataclass(frozen=True)
-class FilterRecord:
-    """One :meth:`SafetyShield.filter` call, as a set :attr:`SafetyShield.recorder` receives it.
-
-    Attributes:
-        shield: the filter (its :meth:`~SafetyShield.cost_regions` and
-            :meth:`~SafetyShield.clearance` re-evaluate the decision).
-        model: the robot model the filter used.
-        base: the unwrapped env, still before the step.
-        obs: the observation the filter read.
-        state: the robot state the filter read.
-        proposed: the action given to the filter.
-        applied: the action it returned.
-        branch: one of :data:`FILTER_BRANCHES`.
-    """
-
-    shield: SafetyShield
-    model: RobotModel
-    base: Any
-    obs: np.ndarray
-    state: RobotState
-    proposed: np.ndarray
-    applied: np.ndarray
-    branch: str
-
-
-def _branch(before: tuple[int, int, int], stats: ShieldStats) -> str:
-    """The branch of one filter call from its counter increments (``before``: checked, braked,
-    escaped at its start)."""
-    if stats.escaped > before[2]:
-        return "escaped"
-    if stats.braked > before[1]:
-        return "braked"
-    return "kept" if stats.checked > before[0] else "unchecked"
-
 
 class SafetyShield:
     """Model-predictive braking filter on the low-level action (see the module docstring).
@@ -307,7 +264,7 @@ class SafetyShield:
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
                    regions: np.ndarray) -> float:
         """Smallest ``distance - R`` over ``first`` then the braking manoeuvre."""
-        return float(self._gaps(model, _trajectory(model, state, first), regions).min())
+        return float(self._gaps(model, trajectory(model, state, first), regions).min())
 
     @staticmethod
     def _gaps(model: RobotModel, points: np.ndarray, regions: np.ndarray) -> np.ndarray:
@@ -315,7 +272,7 @@ class SafetyShield:
         gaps = np.linalg.norm(points[:, None, :] - regions[None, :, :2], axis=-1)
         radius = regions[None, :, 2]
         if regions.shape[1] > 3 and regions[:, 3].any():
-            radius = radius + _seconds_ahead(model, points)[:, None] * regions[None, :, 3]
+            radius = radius + seconds_ahead(model, points)[:, None] * regions[None, :, 3]
         return gaps - radius
 
     def filter(self, action: np.ndarray, base: Any, obs: np.ndarray) -> np.ndarray:
@@ -332,7 +289,7 @@ class SafetyShield:
         applied = self._filter(action, base, obs)
         assert self._model is not None
         self.recorder(FilterRecord(self, self._model, base, obs, state, np.asarray(action),
-                                   np.asarray(applied), _branch(before, self.stats)))
+                                   np.asarray(applied), branch_of(before, self.stats)))
         return applied
 
     def _filter(self, action: np.ndarray, base: Any, obs: np.ndarray) -> np.ndarray:
@@ -347,7 +304,7 @@ class SafetyShield:
         state = RobotState(body.position.x, body.position.y, body.velocity.x, body.velocity.y,
                            body.angle, body.angular_velocity)
         reach = model.stopping_reach(state) + 0.1
-        ahead = _step_seconds(model) * (model.horizon + 1)  # the certificate's last point
+        ahead = step_seconds(model) * (model.horizon + 1)  # the certificate's last point
         if self.perception == "lidar" and self._lidar_lower_bound(base, obs, ahead) >= reach:
             return action  # nothing any lit bin could hold is within reach: no reconstruction
         regions = self.cost_regions(base, obs)
@@ -386,18 +343,18 @@ class SafetyShield:
         (a manoeuvre that goes deeper into a region than the robot already is scores below any
         that does not), among the options whose one step and braking keep clear of where every
         region is now if there are any (a hazard is certain cost). The last escape is kept while
-        it scores within :data:`_KEEP_SLACK` of the best, so that the robot does not dither
+        it scores within :data:`KEEP_SLACK` of the best, so that the robot does not dither
         between ways out."""
         now, here = everywhere.copy(), regions.copy()
         now[:, 3] = here[:, 3] = 0.0
-        hold = max(1, round(ESCAPE_HOLD_S / _step_seconds(model)))
+        hold = max(1, round(ESCAPE_HOLD_S / step_seconds(model)))
         present = [self._clearance(model, state, a, here) for a in options]
         # a manoeuvre may not go deeper into a region than the robot already is
         inside = float((np.linalg.norm(now[:, :2] - (state.x, state.y), axis=1) - now[:, 2]).min())
-        floor = min(inside, 0.0) - _ESCAPE_SLACK
+        floor = min(inside, 0.0) - ESCAPE_SLACK
         away = []
         for a in options:
-            points = _trajectory(model, state, a, hold)
+            points = trajectory(model, state, a, hold)
             gaps = self._gaps(model, points, now).min(axis=1)
             away.append(float(gaps[-1]) if gaps.min() >= floor else float(gaps.min()) - 1e3)
         candidates = [i for i, score in enumerate(present) if score >= 0.0] or \
@@ -405,52 +362,10 @@ class SafetyShield:
         best = max(candidates, key=away.__getitem__)
         if last is not None:  # keep going the way the last escape went while it is as good
             for i in candidates:
-                if np.array_equal(options[i], last) and away[i] >= away[best] - _KEEP_SLACK:
+                if np.array_equal(options[i], last) and away[i] >= away[best] - KEEP_SLACK:
                     best = i
         self._last_escape = np.asarray(options[best])
         return best
-
-
-#: How long (s) an escape from a moving region is held in its score before braking.
-ESCAPE_HOLD_S = 0.3
-#: How much deeper (m) than the robot already is an escape may go into a region.
-_ESCAPE_SLACK = 0.01
-#: How much worse (m) than the best the last escape may score and still be kept.
-_KEEP_SLACK = 0.002
-
-
-def _trajectory(model: RobotModel, state: RobotState, first: np.ndarray,
-                hold: int = 1) -> np.ndarray:
-    """Root positions ``(hold + horizon, 2)``: ``first`` for ``hold`` steps, then braking."""
-    points = np.empty((model.horizon + hold, 2))
-    s = state
-    for i in range(hold):
-        s = model.step(s, first)
-        points[i] = (s.x, s.y)
-    points[hold:] = model.brake_path(s)
-    return points
-
-
-def _step_seconds(model: RobotModel) -> float:
-    """The model's env step (s)."""
-    return float(model.h * model.substeps)  # type: ignore[attr-defined]
-
-
-#: How long (s) a certificate keeps the robot clear of a gremlin's reach once its braking
-#: manoeuvre has brought it to rest (module docstring).
-GREMLIN_HOLD_S = 0.8
-#: The braking manoeuvre has come to rest where the rest of it covers less than this (m).
-_AT_REST = 0.005
-
-
-def _seconds_ahead(model: RobotModel, points: np.ndarray) -> np.ndarray:
-    """The time (s) at which a moving region is checked against each certificate point: its
-    own time ``(i + 1) dt``, at most :data:`GREMLIN_HOLD_S` past the time the manoeuvre has
-    come to rest."""
-    ahead = _step_seconds(model) * np.arange(1, len(points) + 1)
-    remaining = np.linalg.norm(points - points[-1], axis=1)
-    rest = int(np.argmax(remaining < _AT_REST))
-    return np.minimum(ahead, ahead[rest] + GREMLIN_HOLD_S)
 
 
 class ShieldedEnv(gym.Wrapper):
