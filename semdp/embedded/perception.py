@@ -11,7 +11,10 @@ more than a snapshot of the LiDAR:
   that button's contribution to the buttons channel, bin for bin (same position, same
   arithmetic). :func:`button_frame` zeroes the button bins whose reading equals the goal
   channel's: what remains is lit by the other buttons (a bin where a nearer wrong button hides
-  the goal button keeps its reading). Ground truth drops the button at the goal position.
+  the goal button keeps its reading). A wrong button that the goal button's reading hides in
+  one of its bins (farther, as any LiDAR hides a farther object of a kind in a bin) is seen
+  again once the robot's bearing to the two differs by a bin. Ground truth drops the button at
+  the goal position.
 * **The grace period.** After a press the goal moves to another button and for
   ``BUTTON_RESAMPLING_DELAY`` (10) steps the wrong-button cost is off and the buttons channel is
   blank. The safety layer does not use the relief: every non-goal button stays a cost region

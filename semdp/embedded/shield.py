@@ -24,11 +24,10 @@ the centre; a gremlin's row has ``v`` = 0.35 m/s and its R includes the start-up
 clear of every gremlin until 0.8 s after it has stopped (a robot at rest cannot be certified
 against a gremlin forever from one reading; a gremlin that keeps coming makes the next
 certificates fail, and the filter moves the robot away). When no option is certified near a
-gremlin, the escape gets away from where every region is now: each option held for
-``ESCAPE_HOLD_S`` (0.3 s) before braking (one step from rest gets away from nothing), the one
-that comes to rest farthest from every region, among the options that keep clear of where every
-region is now (a hazard is certain cost, a gremlin's reach only a bound); without moving regions
-the escape is the best one-step certificate, as before.
+gremlin, the escape (the follower's command among the options) gets away from where every
+region is now: each option held for ``ESCAPE_HOLD_S`` (0.3 s) before braking, the one that
+comes to rest farthest from every region, among those that keep clear of where every region is
+now (a hazard is certain cost, a gremlin's reach a bound); else the best one-step certificate.
 
 With ``perception="lidar"`` the obstacles are re-read from the LiDAR at every checked step (the
 buttons, while their channel is blank, from the last lit frame). A LiDAR bin gives an object's
@@ -328,8 +327,10 @@ class SafetyShield:
         scores = [self._clearance(model, state, a, regions) for a in options]
         best = int(np.argmax(scores))
         if scores[best] < 0.0 and regions[:, 3].any():
+            options.append(np.asarray(action, dtype=np.float64))  # the follower's way out
             best = self._escape_moving(model, state, options, regions, everywhere, last_escape)
-        return np.asarray(options[best], dtype=np.asarray(action).dtype)
+        kept = best == len(model.escapes) + 1  # the follower's own command, appended last
+        return action if kept else np.asarray(options[best], dtype=np.asarray(action).dtype)
 
     def _escape_moving(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
                        regions: np.ndarray, everywhere: np.ndarray,
@@ -342,9 +343,9 @@ class SafetyShield:
         by the clearance of the point where it comes to rest from every region without growth
         (a manoeuvre that goes deeper into a region than the robot already is scores below any
         that does not), among the options whose one step and braking keep clear of where every
-        region is now if there are any (a hazard is certain cost). The last escape is kept while
-        it scores within :data:`KEEP_SLACK` of the best, so that the robot does not dither
-        between ways out."""
+        region is now if there are any (a hazard is certain cost). The follower's own command
+        is one of the options; the last escape is kept while it scores within :data:`KEEP_SLACK`
+        of the best, so that the robot does not dither between ways out."""
         now, here = everywhere.copy(), regions.copy()
         now[:, 3] = here[:, 3] = 0.0
         hold = max(1, round(ESCAPE_HOLD_S / step_seconds(model)))
@@ -354,8 +355,7 @@ class SafetyShield:
         floor = min(inside, 0.0) - ESCAPE_SLACK
         away = []
         for a in options:
-            points = trajectory(model, state, a, hold)
-            gaps = self._gaps(model, points, now).min(axis=1)
+            gaps = self._gaps(model, trajectory(model, state, a, hold), now).min(axis=1)
             away.append(float(gaps[-1]) if gaps.min() >= floor else float(gaps.min()) - 1e3)
         candidates = [i for i, score in enumerate(present) if score >= 0.0] or \
             list(range(len(options)))
