@@ -1,7 +1,8 @@
 """The safety layer on the Button tasks: wrong buttons as cost regions (not the goal button, from
 the LiDAR as from ground truth, remembered while their channel is blank after a press), the
-grace period after a press, and moving gremlins (the stated speed bound against the simulator,
-planted gremlins driven at and into the robot's path)."""
+grace period after a press, and moving gremlins (the stated gremlin law against the simulator,
+the orbit discs from ground truth and from the LiDAR, planted robots driven into a gremlin's
+orbit)."""
 
 from __future__ import annotations
 
@@ -13,9 +14,11 @@ import pytest
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded.perception import (
+    GREMLIN_LAW_TOLERANCE,
+    GREMLIN_ORBIT,
     ButtonMemory,
     button_frame,
-    gremlin_reach,
+    gremlin_offset,
     perceive_obstacles,
     wrong_buttons,
 )
@@ -137,89 +140,112 @@ def test_the_goal_button_can_be_pressed_and_then_left_within_the_grace_period(
 # ------------------------------------------------------------------ gremlins
 @pytest.mark.parametrize("task", ["Button1", "Button2"])
 @pytest.mark.parametrize("robot", ["point", "car"])
-def test_gremlins_keep_to_the_stated_reach(robot: str, task: str) -> None:
-    """The assumption the planner and the filter rely on: a gremlin seen at time t is within
-    0.35 s + 0.35 exp(-t / 0.09) m of there s seconds later; it is nearly tight."""
+def test_gremlins_keep_to_the_stated_law(robot: str, task: str) -> None:
+    """The assumption the planner and the filter rely on: every gremlin sits at its home plus
+    the common offset o(t), within the stated tolerance, so it never leaves its orbit disc."""
     env = gym.make(f"sims/Safety{robot.capitalize()}{task}-v0").unwrapped
-    worst, tightest = -np.inf, 0.0
+    worst_law, farthest = 0.0, 0.0
     for seed in range(2):
         env.reset(seed=seed)
         rng = np.random.default_rng(seed)
-        xy, times = [np.array(env.gremlin_xy)], [env.sim_time]
-        for _ in range(120):
+        home = np.array(env.gremlin_home)
+        for _ in range(400):  # 8 s: more than one revolution, the start-up transient included
             env.step(rng.uniform(-1, 1, 2))
-            xy.append(np.array(env.gremlin_xy))
-            times.append(env.sim_time)
-        for i in range(len(times)):
-            for j in range(i + 1, min(len(times), i + 50)):
-                moved = float(np.linalg.norm(xy[j] - xy[i], axis=1).max())
-                bound = gremlin_reach(times[i], times[j] - times[i])
-                worst, tightest = max(worst, moved - bound), max(tightest, moved / bound)
-    assert worst <= 1e-12
-    assert tightest > 0.95
+            xy = np.array(env.gremlin_xy)
+            law = np.linalg.norm(xy - gremlin_offset(env.sim_time) - home, axis=1).max()
+            worst_law = max(worst_law, float(law))
+            farthest = max(farthest, float(np.linalg.norm(xy - home, axis=1).max()))
+    assert worst_law <= GREMLIN_LAW_TOLERANCE
+    assert 0.34 < farthest <= GREMLIN_ORBIT  # the disc is nearly tight
 
 
-def _pursue(base, speed: float = 0.35, until_s: float = 3.0) -> None:
-    """Drive gremlin 0 straight at the robot's current position at ``speed`` (the stated bound)
-    until ``until_s``, instead of the replica's circle."""
-
-    def move(h: float) -> None:
-        xy, body = base.gremlin_xy[0], base.gremlin_bodies[0]
-        offset = np.asarray(base.robot_position) - xy
-        distance = float(np.linalg.norm(offset))
-        step = speed * h if base.sim_time + h <= until_s and distance > 1e-9 else 0.0
-        nx, ny = xy + step * offset / max(distance, 1e-9)
-        body.velocity = ((nx - xy[0]) / h, (ny - xy[1]) / h)
-        xy[0], xy[1] = float(nx), float(ny)
-
-    base._move_gremlins = move
+def test_gremlin_offset_at_hand_computed_times() -> None:
+    # at rest at home at t = 0; long after the transient, 0.35 / sqrt(1 + 0.09^2) from home,
+    # atan(0.09) rad behind the target's bearing (the target at t = pi / 2 is 0.35 (1, 0); the
+    # targets turn clockwise)
+    np.testing.assert_allclose(gremlin_offset(0.0), [0.0, 0.0], atol=1e-12)
+    lagged = gremlin_offset(2 * math.pi + math.pi / 2)
+    radius = 0.35 / math.sqrt(1 + 0.09**2)
+    behind = math.atan(0.09)
+    np.testing.assert_allclose(lagged, radius * np.array([math.cos(behind), math.sin(behind)]),
+                               atol=1e-9)
 
 
-def _gremlin_cost(robot: str, shield: SafetyShield | None, start: tuple[float, float],
-                  action: list[float], steps: int = 200, drive=_pursue,
-                  agent: tuple[float, float] = (0.0, 0.0)) -> float:
-    """Gremlin cost steps of ``steps`` steps of ``action`` with gremlin 0 planted at ``start``
-    and moved by ``drive``."""
-    env, _ = _button_env(robot, SEED_GOAL_ELSEWHERE, shield, gremlins=[start], agent=agent)
-    drive(env.unwrapped)
+@pytest.mark.parametrize("mode", ["gt", "lidar"])
+def test_perceived_gremlins_are_their_orbit_discs(mode: str) -> None:
+    homes = [(0.9, 0.3), (-0.8, 0.9)]
+    env, obs = _button_env("point", SEED_GOAL_ELSEWHERE, gremlins=homes)
+    base = env.unwrapped
+    for _ in range(60):  # 1.2 s: every gremlin 0.35 m from its home
+        obs, *_ = env.step(np.zeros(2))
+    moved = np.linalg.norm(np.array(base.gremlin_xy) - homes, axis=1)
+    assert np.all(moved > 0.3)
+    found = perceive_obstacles(base, obs, mode, kinds=("gremlins",))
+    gaps = np.linalg.norm(found[:, None, :2] - np.array(homes)[None], axis=-1).min(axis=0)
+    # centred at the homes (the LiDAR's bin-centre bearing: <= 0.196 m per m of range)
+    assert np.all(gaps <= (0.01 if mode == "gt" else 0.25))
+    np.testing.assert_allclose(found[:, 2], GREMLIN_ORBIT)  # the planner's eps' adds the size
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_filter_regions_hold_every_gremlin_orbit(robot: str) -> None:
+    # the LiDAR filter's regions (bearing-bounded) contain each true swept disc: home, orbit
+    # radius plus the gremlin's and the robot's extents
+    env, obs = _button_env(robot, SEED_GOAL_ELSEWHERE, gremlins=[(1.0, 0.6), (-0.7, -1.0)])
+    base = env.unwrapped
+    shield = SafetyShield(perception="lidar")
+    shield.bind(base)
+    contact = shield._radii["gremlins"]
+    for _ in range(4):
+        for _ in range(40):
+            obs, *_ = env.step(np.zeros(2))
+        regions = shield.cost_regions(base, obs)
+        for home in np.array(base.gremlin_home):
+            reach = np.linalg.norm(regions[:, :2] - home, axis=1) + GREMLIN_ORBIT + contact
+            assert (reach <= regions[:, 2] + 1e-9).any()
+
+
+def _into_orbit(robot: str, shield: SafetyShield | None, home: tuple[float, float],
+                steps: int = 400) -> float:
+    """Gremlin cost steps of a robot driven at full speed until its centre is on the orbit of
+    a gremlin at ``home`` (0.35 m from it), then held there: the law brings the gremlin round
+    within one revolution (6.3 s, 315 steps)."""
+    env, _ = _button_env(robot, SEED_GOAL_ELSEWHERE, shield, gremlins=[home],
+                         agent=(-1.2, home[1]))
+    base = env.unwrapped
     cost = 0.0
     for _ in range(steps):
-        _, _, _, _, info = env.step(np.array(action))
+        on_orbit = base.robot_position[0] >= home[0] - 0.35
+        action = np.zeros(2) if on_orbit else np.array(FULL[robot])
+        _, _, _, _, info = env.step(action)
         cost += info["cost_gremlins"]
     return cost
 
 
-@pytest.mark.parametrize(("robot", "perception", "bearing"), [
-    ("point", "lidar", 270), ("point", "lidar", 90), ("car", "gt", 270), ("car", "lidar", 90),
-    ("mass", "gt", 270), ("mass", "lidar", 90)])
-def test_filter_gets_a_standing_robot_away_from_a_gremlin_driven_at_it(
-        robot: str, perception: str, bearing: float) -> None:
-    start = (0.9 * math.cos(math.radians(bearing)), 0.9 * math.sin(math.radians(bearing)))
-    stay = [0.0, 0.0]
-    assert _gremlin_cost(robot, None, start, stay) > 0  # it runs the robot over
+@pytest.mark.parametrize(("robot", "perception"), [
+    ("point", "lidar"), ("point", "gt"), ("car", "lidar"), ("car", "gt"), ("mass", "lidar"),
+    ("mass", "gt")])
+def test_filter_keeps_a_robot_driven_into_a_gremlin_orbit_out_of_its_way(
+        robot: str, perception: str) -> None:
+    home = (0.6, 0.0)
+    assert _into_orbit(robot, None, home) > 0  # unfiltered, the gremlin comes round and hits it
     shield = SafetyShield(perception=perception)
-    assert _gremlin_cost(robot, shield, start, stay) == 0.0
-    assert shield.stats.escaped > 0
+    assert _into_orbit(robot, shield, home) == 0.0
+    assert shield.stats.braked + shield.stats.escaped > 0
 
 
-def _cross(base, start=(0.6, 0.0), velocity=(-0.35, 0.0), travel: float = 1.0) -> None:
-    """Drive gremlin 0 from ``start`` at ``velocity`` for ``travel`` metres, then park it."""
-    start_arr, velocity_arr = np.asarray(start), np.asarray(velocity)
-    speed = float(np.linalg.norm(velocity_arr))
+# ------------------------------------------------------------------ regressions from the bench
+@pytest.mark.parametrize(("task", "policy", "seed"), [
+    ("Button1", "adversarial", 9209), ("Button2", "wrong_button", 9201)])
+def test_bench_episodes_that_had_cost_have_none(task: str, policy: str, seed: int) -> None:
+    """Two Point episodes of ``semdp-bench safety`` (development seeds) that had cost under
+    earlier rules: a gremlin ran over a robot that the filter held still in its way (gremlins
+    under a speed bound: 8 cost steps), and an escape from a region the robot found itself in
+    drove it into a hazard (before escapes kept out of the regions the robot is outside of: 9)."""
+    from semdp.benchmarks.safety import build_semdp_env, make_policy
+    from semdp.embedded.safety_eval import evaluate_safety
 
-    def move(h: float) -> None:
-        t = min(base.sim_time + h, travel / speed)
-        nx, ny = start_arr + velocity_arr * t
-        xy, body = base.gremlin_xy[0], base.gremlin_bodies[0]
-        body.velocity = ((nx - xy[0]) / h, (ny - xy[1]) / h)
-        xy[0], xy[1] = float(nx), float(ny)
-
-    base._move_gremlins = move
-
-
-def test_filter_stops_a_robot_driving_into_the_path_of_an_oncoming_gremlin() -> None:
-    # the Point at full speed, a gremlin coming the other way along its path: braking in time
-    # for where the gremlin is now is too late for where it will be
-    run = {"action": FULL["point"], "steps": 150, "drive": _cross, "agent": (-1.2, 0.0)}
-    assert _gremlin_cost("point", None, (0.6, 0.0), **run) > 0
-    assert _gremlin_cost("point", SafetyShield(perception="gt"), (0.6, 0.0), **run) == 0.0
+    env = build_semdp_env("point", task, "eval")
+    stats = evaluate_safety(env, make_policy(policy, env, seed), 1, seed=seed)
+    assert stats["episodes"] == 1 and stats["escape_rate"] > 0  # driven to the edge
+    assert stats["cost_steps_total"] == 0

@@ -271,22 +271,20 @@ def test_semdp_keeps_subgoals_at_a_wrong_button_off_it(perception: str) -> None:
     assert cost == 0.0
 
 
-def test_semdp_grows_the_gremlins_by_their_reach_over_the_window() -> None:
-    from semdp.embedded.perception import gremlin_reach
+def test_semdp_plans_around_the_gremlins_orbit_discs() -> None:
+    from semdp.embedded.perception import GREMLIN_ORBIT
 
     env = _semdp("sims/SafetyPointButton1-v0", perception="gt", k=10)
     layout = {**BUTTON_LAYOUT, "gremlins": [(0.0, 1.0)]}
     obs, _ = env.reset(seed=0, options={"layout": layout})
     base = env.unwrapped
-    perceived = env.perceive(obs)
-    gremlin = perceived[np.argmin(np.linalg.norm(perceived[:, :2] - base.gremlin_xy[0], axis=1))]
-    # 10 low-level steps of the Point (0.2 s) at episode time 0: 0.35 * 0.2 + 0.35
-    assert gremlin[2] == pytest.approx(gremlin_reach(0.0, 0.2)) == pytest.approx(0.42)
-    for _ in range(5):
-        obs, *_ = env.step(np.zeros(2))
-    perceived = env.perceive(obs)
-    gremlin = perceived[np.argmin(np.linalg.norm(perceived[:, :2] - base.gremlin_xy[0], axis=1))]
-    assert gremlin[2] == pytest.approx(0.07, abs=1e-5)  # 1 s in: the transient has decayed
+    for steps in (0, 5):  # at the reset (the gremlin at home) and 1 s in (0.35 m from it)
+        for _ in range(steps):
+            obs, *_ = env.step(np.zeros(2))
+        perceived = env.perceive(obs)
+        gremlin = perceived[np.argmin(np.linalg.norm(perceived[:, :2] - (0.0, 1.0), axis=1))]
+        np.testing.assert_allclose(gremlin, [0.0, 1.0, GREMLIN_ORBIT], atol=0.005)
+    assert np.linalg.norm(np.array(base.gremlin_xy[0]) - (0.0, 1.0)) > 0.3
     # static kinds stay points (the thesis' eps' covers their size)
-    assert np.all(perceived[np.linalg.norm(perceived[:, :2] - base.gremlin_xy[0], axis=1) > 0.01,
-                            2] == 0.0)
+    others = np.linalg.norm(perceived[:, :2] - (0.0, 1.0), axis=1) > 0.01
+    assert np.all(perceived[others, 2] == 0.0)

@@ -25,22 +25,21 @@ more than a snapshot of the LiDAR:
   whole (its goal may be the button just pressed), so the new goal button is a cost region until
   the channel lights again: at most 10 steps.
 
-Gremlins move. The replica's law (``sims/safety_gym/world.py`` ``_move_gremlins``) has each
-gremlin track a target circling its placement at 0.35 m, 1 rad/s (0.35 m/s), with a first-order
-lag of 0.09 s; it starts at the placement, 0.35 m from its first target. Per substep ``h`` it
-covers ``(1 - e)`` of its gap to the target (``e = exp(-h / 0.09)``), and that gap shrinks by
-``e`` while the target moves ``0.35 h``: the gap is at most ``D + (0.35 - D) e^k`` after ``k``
-substeps (``D = 0.35 h / (1 - e)``, the steady lag), so the substeps from episode time ``t`` on
-cover at most ``0.35 h`` each plus a geometric tail that sums to ``0.35 exp(-t / 0.09)``.
-**The stated assumption** of the safety layer (:func:`gremlin_reach`): a gremlin seen at ``g``
-at episode time ``t`` is, ``s`` seconds later, within ``0.35 s + 0.35 exp(-t / 0.09)`` of
-``g``: a speed bound of 0.35 m/s plus the start-up transient's allowance (0.35 m at the reset,
-under 1 mm after 0.55 s). Neither the circle nor the velocity is used, so the LiDAR, which gives
-positions only, suffices. The planner's gremlin discs grow by the reach over the window
-(``horizon_s``: its k low-level steps, after which the next plan sees the gremlin anew), the
-filter's by the reach to each point of its certificate (:mod:`semdp.embedded.shield`).
-tests/test_shield.py checks the bound against the simulator and plants gremlins driven into the
-robot's path.
+Gremlins move. **The stated assumption** of the safety layer is Safety Gym's gremlin law as the
+replica implements it (``sims/safety_gym/world.py`` ``_move_gremlins``): each gremlin tracks a
+target circling its placement ("home") at 0.35 m and 1 rad/s, ``home + 0.35 (sin t, cos t)`` at
+episode time ``t``, with a first-order lag of 0.09 s, starting at home. Every gremlin then sits
+at ``home + o(t)`` with the same offset ``o(t)`` (:func:`gremlin_offset`: the lag's closed-form
+response, within 1.7 mm of the simulator's substep law; ``|o(t)| <= 0.35`` m), so a gremlin seen
+at ``g`` has its home at ``g - o(t)``, and everywhere it will ever be lies within
+:data:`GREMLIN_ORBIT` (0.35 m + :data:`GREMLIN_LAW_TOLERANCE`) of that home. The planner and the
+filter treat each gremlin as that **static orbit disc** (:func:`gremlin_orbits`): a robot outside
+it can never be touched, so the machinery of the static hazards (certificates, braking, escape
+modes) covers the gremlins too, from one LiDAR reading (the bin's position shifted by ``-o(t)``)
+as from ground truth. The price is room: a wrong or goal button inside a gremlin's orbit disc is
+out of bounds (timing a pass between two visits of the gremlin would need the speed as well as
+the law). tests/test_button_safety.py checks the law against the simulator and plants robots
+driven into a gremlin's orbit.
 """
 
 from __future__ import annotations
@@ -62,30 +61,43 @@ OBSTACLE_KINDS: tuple[str, ...] = ("hazards", "vases", "pillars", "gremlins", "b
 #: beyond the thesis); ``gt``: the simulator's ground truth ("Ours w/ gt").
 PERCEPTION_MODES: tuple[str, ...] = ("lidar", "lidar_refined", "gt")
 
-#: A gremlin's speed bound (m/s) once its start-up transient has decayed: its target circles at
-#: 0.35 m and 1 rad/s.
-GREMLIN_SPEED = 0.35
-#: The gremlin's tracking lag (s) and its first target's distance from its placement (m).
+#: The gremlin law (module docstring): the target's distance from home (m), its angular speed is
+#: 1 rad/s, and the tracking lag (s).
+GREMLIN_TRAVEL = 0.35
 GREMLIN_LAG_S = 0.09
-GREMLIN_START_GAP = 0.35
+#: How far (m) the simulator's substep law may be from :func:`gremlin_offset` (measured: 1.7 mm).
+GREMLIN_LAW_TOLERANCE = 0.005
+#: The radius (m) around a gremlin's home that holds every position its centre will ever take.
+GREMLIN_ORBIT = GREMLIN_TRAVEL + GREMLIN_LAW_TOLERANCE
 #: A button reading at most this far from the goal channel's is the goal button's.
 _SAME_READING = 1e-9
 
 
-def gremlin_allowance(t: float) -> float:
-    """What the start-up transient adds to a gremlin's reach from episode time ``t`` (s) on:
-    ``0.35 exp(-t / 0.09)`` m (module docstring)."""
-    return GREMLIN_START_GAP * math.exp(-max(float(t), 0.0) / GREMLIN_LAG_S)
+def gremlin_offset(t: float) -> np.ndarray:
+    """Every gremlin's position relative to its home at episode time ``t`` (s): the first-order
+    lag's response to the target ``0.35 (sin t, cos t)`` from rest at home, in closed form. In
+    complex notation the target is ``0.35 i exp(-i t)``, the steady response that divided by
+    ``1 - 0.09 i``, and the start-up transient decays as ``exp(-t / 0.09)``."""
+    t = max(float(t), 0.0)
+
+    def steady(s: float) -> complex:
+        return GREMLIN_TRAVEL * 1j * complex(np.exp(-1j * s)) / (1.0 - 1j * GREMLIN_LAG_S)
+
+    z = steady(t) - steady(0.0) * math.exp(-t / GREMLIN_LAG_S)
+    return np.array([z.real, z.imag])
 
 
-def gremlin_reach(t: float, s: float) -> float:
-    """How far (m) a gremlin seen at episode time ``t`` can be ``s`` seconds later (the stated
-    assumption, module docstring): ``0.35 s + 0.35 exp(-t / 0.09)``."""
-    return GREMLIN_SPEED * max(float(s), 0.0) + gremlin_allowance(t)
+def gremlin_orbits(found: np.ndarray, t: float) -> np.ndarray:
+    """The orbit discs of gremlins seen at rows ``[x, y, r]`` at episode time ``t``: centred at
+    their homes (``g - o(t)``), the radius grown by :data:`GREMLIN_ORBIT` (module docstring)."""
+    orbits = np.array(found, dtype=np.float64).reshape(-1, 3)
+    orbits[:, :2] -= gremlin_offset(t)
+    orbits[:, 2] += GREMLIN_ORBIT
+    return orbits
 
 
 def episode_time(env: Any) -> float:
-    """The env's episode time (its ``sim_time``; 0 if it has none: the largest allowance)."""
+    """The env's episode time (its ``sim_time``; 0 if it has none)."""
     return float(getattr(env, "sim_time", 0.0))
 
 
@@ -172,7 +184,6 @@ def perceive_obstacles(
     use_radii: bool = False,
     lidar_max_dist: float = 3.0,
     memory: ButtonMemory | None = None,
-    horizon_s: float = 0.0,
 ) -> np.ndarray:
     """Obstacles as an (m, 3) array of [x, y, radius] for the planner.
 
@@ -185,15 +196,13 @@ def perceive_obstacles(
             ``"lidar_refined"`` places each peak at the bearing its neighbours' aliasing implies
             (exact for an isolated object); ``"gt"`` reads the simulator's ground truth
             ("Ours w/ gt").
-        kinds: object types that are obstacles (buttons: all but the goal button).
+        kinds: object types that are obstacles (buttons: all but the goal button; gremlins:
+            their orbit discs, :func:`gremlin_orbits`).
         use_radii: ground truth only: keep the objects' radii (clearance eps' + r). The thesis
             plans around centres (r = 0) and sets eps' = 0.5 m to cover the object sizes.
         lidar_max_dist: LiDAR range (Safety Gym: 3 m).
         memory: LiDAR only: the buttons channel's memory (read while the channel is blank,
             module docstring); None reads the current channel only.
-        horizon_s: each gremlin's radius grows by its reach (:func:`gremlin_reach`) over this
-            many seconds: the time the plan is followed before the next one (module
-            docstring); 0 treats them as static.
     """
     if mode not in PERCEPTION_MODES:
         raise ValueError(f"perception mode must be one of {PERCEPTION_MODES}, got {mode!r}")
@@ -209,8 +218,8 @@ def perceive_obstacles(
                 found[:, 2] = 0.0
         else:
             found = _lidar_obstacles(env, obs, kind, mode, lidar_max_dist, memory)
-        if kind == "gremlins" and horizon_s > 0.0 and len(found):
-            found[:, 2] += gremlin_reach(episode_time(env), horizon_s)
+        if kind == "gremlins" and len(found):
+            found = gremlin_orbits(found, episode_time(env))
         if len(found):
             rows.append(found)
     if not rows:

@@ -15,19 +15,10 @@ Cost regions are discs around the obstacles the planner sees, by kind: hazards c
 root node is inside them; vases, pillars, gremlins and the buttons other than the goal button
 when the robot's outline touches them, i.e. the root within ``object radius + robot extent``
 (:mod:`semdp.embedded.perception`: which button is the goal, the buttons' memory while their
-LiDAR channel is blank after a press, and the grace period). Gremlins move: a region row is
-``[x, y, R, v]`` and the point of the certificate ``s`` seconds ahead must keep ``R + v s`` from
-the centre; a gremlin's row has ``v`` = 0.35 m/s and its R includes the start-up allowance
-(:func:`~semdp.embedded.perception.gremlin_reach`: the stated assumption), every other kind has
-``v = 0``. Past the point where the braking manoeuvre has come to rest, ``s`` stops growing
-``GREMLIN_HOLD_S`` (0.8 s, :mod:`semdp.embedded.shield_motion`) later: a certified robot stays
-clear of every gremlin until 0.8 s after it has stopped (a robot at rest cannot be certified
-against a gremlin forever from one reading; a gremlin that keeps coming makes the next
-certificates fail, and the filter moves the robot away). When no option is certified near a
-gremlin, the escape (the follower's command among the options) gets away from where every
-region is now: each option held for ``ESCAPE_HOLD_S`` (0.3 s) before braking, the one that
-comes to rest farthest from every region, among those that keep clear of where every region is
-now (a hazard is certain cost, a gremlin's reach a bound); else the best one-step certificate.
+LiDAR channel is blank after a press, and the grace period). A gremlin's region is the disc of
+its orbit around its home, static under the stated gremlin law
+(:func:`~semdp.embedded.perception.gremlin_orbits`): outside it the robot can never be touched,
+so gremlins need nothing the static kinds do not.
 
 With ``perception="lidar"`` the obstacles are re-read from the LiDAR at every checked step (the
 buttons, while their channel is blank, from the last lit frame). A LiDAR bin gives an object's
@@ -44,7 +35,8 @@ outside any LiDAR filter.
 Contacts (the box, a pillar) are outside the model too: a push can leave the robot in a state
 from which braking is no longer certified. ``fallback`` says what happens then: ``"escape"``
 (the default) takes whichever of braking and the escape actions keeps the largest clearance
-one step ahead; ``"brake"`` keeps braking. In the one training episode with cost of the
+one step ahead, among those that enter no region the robot is outside of now if there are any;
+``"brake"`` keeps braking. In the one training episode with cost of the
 long-trained Point runs (outputs/reference/semdp_converged/COMMAND.md) a push left braking
 uncertified against the LiDAR-bounded regions though not against the true hazard, and the
 escape choice accelerated the robot into the hazard; replayed with ``"brake"`` the episode has
@@ -68,25 +60,17 @@ import gymnasium as gym
 import numpy as np
 
 from semdp.embedded.perception import (
-    GREMLIN_SPEED,
+    GREMLIN_ORBIT,
     OBSTACLE_KINDS,
     PERCEPTION_MODES,
     ButtonMemory,
     LidarFrame,
     button_frame,
     episode_time,
-    gremlin_allowance,
+    gremlin_offset,
     perceive_obstacles,
 )
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
-from semdp.embedded.shield_motion import (
-    ESCAPE_HOLD_S,
-    ESCAPE_SLACK,
-    KEEP_SLACK,
-    seconds_ahead,
-    step_seconds,
-    trajectory,
-)
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
 from sims.safety_gym.perception import BINS, obstacles_from_lidar
 
@@ -127,9 +111,6 @@ class SafetyShield:
     #: The buttons LiDAR channel's memory (:class:`~semdp.embedded.perception.ButtonMemory`),
     #: made on first use; class-level so that filters pickled before it existed have it.
     _buttons: ButtonMemory | None = None
-    #: The last escape from a moving region (kept while it is as good as any; None after any
-    #: other branch). Class-level, for filters pickled before it existed.
-    _last_escape: np.ndarray | None = None
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
@@ -178,17 +159,16 @@ class SafetyShield:
         self.button_memory.forget()
 
     @staticmethod
-    def _motion(base: Any, kind: str) -> tuple[float, float]:
-        """``(extra radius, growth rate)`` of ``kind``'s regions: a gremlin's start-up
-        allowance and speed bound (:func:`~semdp.embedded.perception.gremlin_reach`); 0, 0 for
-        the static kinds."""
+    def _orbit(base: Any, kind: str) -> tuple[np.ndarray, float]:
+        """``(shift, extra radius)`` that turn a seen object of ``kind`` into its region's disc:
+        a gremlin's ``-o(t)`` and :data:`~semdp.embedded.perception.GREMLIN_ORBIT` (its orbit
+        around its home); nothing for the static kinds."""
         if kind != "gremlins":
-            return 0.0, 0.0
-        return gremlin_allowance(episode_time(base)), GREMLIN_SPEED
+            return np.zeros(2), 0.0
+        return -gremlin_offset(episode_time(base)), GREMLIN_ORBIT
 
     def cost_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
-        """``(m, 4)`` rows ``[x, y, R, v]``: the cost regions plus the margin, growing at
-        ``v`` m/s (moving gremlins; 0 for the static kinds)."""
+        """``(m, 3)`` rows ``[x, y, R]``: the cost regions plus the margin."""
         if self.perception == "lidar" and self.lidar_bearing_bound:
             return self._bounded_lidar_regions(base, obs)
         rows = []
@@ -196,18 +176,18 @@ class SafetyShield:
             if kind not in self._radii:
                 continue
             found = perceive_obstacles(base, obs, self.perception, kinds=(kind,),
-                                       memory=self.button_memory)
+                                       memory=self.button_memory)  # gremlins: orbit discs
             if len(found):
-                extra, speed = self._motion(base, kind)
                 found = np.array(found, dtype=np.float64)
-                found[:, 2] = self._radii[kind] + self.margin + extra
-                rows.append(np.column_stack([found, np.full(len(found), speed)]))
-        return np.concatenate(rows) if rows else np.zeros((0, 4))
+                found[:, 2] = self._radii[kind] + self.margin + self._orbit(base, kind)[1]
+                rows.append(found)
+        return np.concatenate(rows) if rows else np.zeros((0, 3))
 
     def _lidar_channels(self, base: Any, obs: np.ndarray
-                        ) -> Iterator[tuple[float, float, LidarFrame]]:
-        """``(cost radius + margin, growth rate, frame)`` of each filtered kind the robot senses
-        (buttons: :func:`~semdp.embedded.perception.button_frame`, possibly remembered)."""
+                        ) -> Iterator[tuple[float, np.ndarray, LidarFrame]]:
+        """``(cost radius + margin, shift, frame)`` of each filtered kind the robot senses
+        (buttons: :func:`~semdp.embedded.perception.button_frame`, possibly remembered; the
+        shift and the radius of a gremlin's orbit: :meth:`_orbit`)."""
         position = np.asarray(base.robot_position, dtype=np.float64)
         heading = float(base.robot_heading)
         for kind in self.kinds:
@@ -220,42 +200,43 @@ class SafetyShield:
                     continue
             else:
                 frame = LidarFrame(obs[base.obs_slices[key]], position, heading)
-            extra, speed = self._motion(base, kind)
-            yield self._radii[kind] + self.margin + extra, speed, frame
+            shift, extra = self._orbit(base, kind)
+            yield self._radii[kind] + self.margin + extra, shift, frame
 
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """Every lit bin of each kind's LiDAR, grown by its bearing error bound."""
         rows = []
-        for radius, speed, frame in self._lidar_channels(base, obs):
+        for radius, shift, frame in self._lidar_channels(base, obs):
             found = obstacles_from_lidar(frame.readings, frame.position, frame.heading,
                                          max_dist=LIDAR_RANGE, peaks_only=False)
             if len(found):
                 ranges = np.linalg.norm(found - frame.position, axis=1)
-                rows.append(np.column_stack([found, radius + BEARING_ERROR_PER_METRE * ranges,
-                                             np.full(len(found), speed)]))
-        return np.concatenate(rows) if rows else np.zeros((0, 4))
+                rows.append(np.column_stack([found + shift,
+                                             radius + BEARING_ERROR_PER_METRE * ranges]))
+        return np.concatenate(rows) if rows else np.zeros((0, 3))
 
-    def _lidar_lower_bound(self, base: Any, obs: np.ndarray, horizon_s: float) -> float:
-        """A lower bound of every LiDAR region's ``distance - R - v horizon_s`` from the
-        nearest lit bin of each kind (exact ranges; the bearing allowance grows with range,
-        hence the factor); ``-inf`` when a frame was read from elsewhere (remembered)."""
+    def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
+        """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
+        each kind (exact ranges; the bearing allowance grows with range, hence the factor; a
+        gremlin's orbit centre is its shift away); ``-inf`` when a frame was read from
+        elsewhere (remembered)."""
         bound = np.inf
         shrink = 1.0 - BEARING_ERROR_PER_METRE if self.lidar_bearing_bound else 1.0
         position = np.asarray(base.robot_position, dtype=np.float64)
-        for radius, speed, frame in self._lidar_channels(base, obs):
+        for radius, shift, frame in self._lidar_channels(base, obs):
             reading = float(frame.readings.max())
             if reading <= 0.0:
                 continue
             if not np.array_equal(frame.position, position):
                 return -np.inf
             bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius
-                        - speed * horizon_s)
+                        - float(np.linalg.norm(shift)))
         return bound
 
     def clearance(self, state: RobotState, first: np.ndarray, regions: np.ndarray) -> float:
         """Smallest ``distance - R`` to ``regions`` over ``first`` then the braking manoeuvre,
         by the bound robot's model: the filter's certificate (>= 0: certified). ``regions``:
-        rows ``[x, y, R]`` or ``[x, y, R, v]`` (R grows by ``v`` per second ahead)."""
+        rows ``[x, y, R]``."""
         if self._model is None:
             raise RuntimeError("bind() the filter to an env first")
         return self._clearance(self._model, state, first, regions)
@@ -263,16 +244,12 @@ class SafetyShield:
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
                    regions: np.ndarray) -> float:
         """Smallest ``distance - R`` over ``first`` then the braking manoeuvre."""
-        return float(self._gaps(model, trajectory(model, state, first), regions).min())
-
-    @staticmethod
-    def _gaps(model: RobotModel, points: np.ndarray, regions: np.ndarray) -> np.ndarray:
-        """``distance - R`` of every point of a certificate trajectory to every region."""
+        points = np.empty((model.horizon + 1, 2))
+        s = model.step(state, first)
+        points[0] = (s.x, s.y)
+        points[1:] = model.brake_path(s)
         gaps = np.linalg.norm(points[:, None, :] - regions[None, :, :2], axis=-1)
-        radius = regions[None, :, 2]
-        if regions.shape[1] > 3 and regions[:, 3].any():
-            radius = radius + seconds_ahead(model, points)[:, None] * regions[None, :, 3]
-        return gaps - radius
+        return float((gaps - regions[None, :, 2]).min())
 
     def filter(self, action: np.ndarray, base: Any, obs: np.ndarray) -> np.ndarray:
         """The action to apply: ``action`` if certified, else braking, else the best escape.
@@ -298,23 +275,19 @@ class SafetyShield:
         model = self._model
         assert model is not None
         self.stats.steps += 1
-        last_escape, self._last_escape = self._last_escape, None
         body = base.body
         state = RobotState(body.position.x, body.position.y, body.velocity.x, body.velocity.y,
                            body.angle, body.angular_velocity)
         reach = model.stopping_reach(state) + 0.1
-        ahead = step_seconds(model) * (model.horizon + 1)  # the certificate's last point
-        if self.perception == "lidar" and self._lidar_lower_bound(base, obs, ahead) >= reach:
+        if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
             return action  # nothing any lit bin could hold is within reach: no reconstruction
         regions = self.cost_regions(base, obs)
         if not len(regions):
             return action
-        distance = (np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
-                    - ahead * regions[:, 3])
-        near = distance < reach
-        if not near.any():
+        distance = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
+        regions = regions[distance < reach]
+        if not len(regions):
             return action
-        everywhere, regions = regions, regions[near]
         self.stats.checked += 1
         if self._clearance(model, state, action, regions) >= 0.0:
             return action
@@ -324,48 +297,23 @@ class SafetyShield:
             return brake.astype(np.asarray(action).dtype)
         self.stats.escaped += 1
         options = [brake, *model.escapes]
+        return np.asarray(options[self._escape(model, state, options, regions)],
+                          dtype=np.asarray(action).dtype)
+
+    def _escape(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
+                regions: np.ndarray) -> int:
+        """The option whose step then braking keeps the largest clearance from ``regions``,
+        among those that enter no region the robot is outside of now if there are any: getting
+        out of one region (an orbit disc it finds itself in, a LiDAR region that lit around it)
+        must not take the robot into another (a hazard)."""
         scores = [self._clearance(model, state, a, regions) for a in options]
         best = int(np.argmax(scores))
-        if scores[best] < 0.0 and regions[:, 3].any():
-            options.append(np.asarray(action, dtype=np.float64))  # the follower's way out
-            best = self._escape_moving(model, state, options, regions, everywhere, last_escape)
-        kept = best == len(model.escapes) + 1  # the follower's own command, appended last
-        return action if kept else np.asarray(options[best], dtype=np.asarray(action).dtype)
-
-    def _escape_moving(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
-                       regions: np.ndarray, everywhere: np.ndarray,
-                       last: np.ndarray | None) -> int:
-        """The escape among ``options`` when a moving region (a gremlin) is near and none is
-        certified. A gremlin's reach grows the same way in every direction and with every
-        second, so it cannot rank ways out (a longer manoeuvre always scores worse); the escape
-        gets away from where every region is now instead: each option held for
-        :data:`ESCAPE_HOLD_S` before braking (one step from rest gets away from nothing), scored
-        by the clearance of the point where it comes to rest from every region without growth
-        (a manoeuvre that goes deeper into a region than the robot already is scores below any
-        that does not), among the options whose one step and braking keep clear of where every
-        region is now if there are any (a hazard is certain cost). The follower's own command
-        is one of the options; the last escape is kept while it scores within :data:`KEEP_SLACK`
-        of the best, so that the robot does not dither between ways out."""
-        now, here = everywhere.copy(), regions.copy()
-        now[:, 3] = here[:, 3] = 0.0
-        hold = max(1, round(ESCAPE_HOLD_S / step_seconds(model)))
-        present = [self._clearance(model, state, a, here) for a in options]
-        # a manoeuvre may not go deeper into a region than the robot already is
-        inside = float((np.linalg.norm(now[:, :2] - (state.x, state.y), axis=1) - now[:, 2]).min())
-        floor = min(inside, 0.0) - ESCAPE_SLACK
-        away = []
-        for a in options:
-            gaps = self._gaps(model, trajectory(model, state, a, hold), now).min(axis=1)
-            away.append(float(gaps[-1]) if gaps.min() >= floor else float(gaps.min()) - 1e3)
-        candidates = [i for i, score in enumerate(present) if score >= 0.0] or \
-            list(range(len(options)))
-        best = max(candidates, key=away.__getitem__)
-        if last is not None:  # keep going the way the last escape went while it is as good
-            for i in candidates:
-                if np.array_equal(options[i], last) and away[i] >= away[best] - KEEP_SLACK:
-                    best = i
-        self._last_escape = np.asarray(options[best])
-        return best
+        outside = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) >= regions[:, 2]
+        if scores[best] >= 0.0 or not outside.any() or outside.all():
+            return best
+        kept = [i for i, a in enumerate(options)
+                if self._clearance(model, state, a, regions[outside]) >= 0.0]
+        return max(kept, key=scores.__getitem__) if kept and best not in kept else best
 
 
 class ShieldedEnv(gym.Wrapper):

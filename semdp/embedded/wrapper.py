@@ -113,8 +113,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             ``"lidar_refined"`` (bearings from the bins' aliasing) or ``"gt"``
             (:data:`semdp.embedded.perception.PERCEPTION_MODES`).
         obstacle_kinds: object types the planner avoids (buttons: all but the goal button;
-            gremlins: grown by their speed bound over the window's k low-level steps;
-            :mod:`semdp.embedded.perception`).
+            gremlins: the discs of their orbits; :mod:`semdp.embedded.perception`).
         brake_steps: the last ``brake_steps`` low-level steps of each window track the robot's
             current position (the follower brakes), so each window ends slow; 0 = off (thesis).
         draw_plan: pass the plan and subgoal to the env's renderer overlay.
@@ -234,12 +233,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
 
     def perceive(self, obs: np.ndarray) -> np.ndarray:
         """The planner's obstacles ``(m, 3)`` for observation ``obs`` (Eq. 3.3's set): the
-        perceived objects of :attr:`obstacle_kinds`, the gremlins grown by their speed bound
-        over the window's k low-level steps."""
-        base = self.env.unwrapped
-        window_s = self.k * float(getattr(getattr(base, "robot", None), "dt", 0.0))
-        return perceive_obstacles(base, obs, self.perception, self.obstacle_kinds,
-                                  memory=self.button_memory, horizon_s=window_s)
+        perceived objects of :attr:`obstacle_kinds` (a gremlin: the disc of its orbit)."""
+        return perceive_obstacles(self.env.unwrapped, obs, self.perception, self.obstacle_kinds,
+                                  memory=self.button_memory)
 
     def _record_frame(self) -> None:
         if self.frame_every and getattr(self.env.unwrapped, "render_mode", None) == "rgb_array":
