@@ -234,18 +234,41 @@ def test_filter_keeps_a_robot_driven_into_a_gremlin_orbit_out_of_its_way(
     assert shield.stats.braked + shield.stats.escaped > 0
 
 
+# ------------------------------------------------------------------ the exit from a region
+def test_outline_distance_at_hand_computed_points() -> None:
+    """The Point's outline (disc r = 0.1 and the nose box x in [0.05, 0.15], |y| <= 0.05)."""
+    from semdp.embedded.robot_models import robot_model
+
+    outline = robot_model("point").outline
+    points = np.array([[0.3, 0.0], [0.0, 0.3], [0.1, 0.0], [0.15, 0.1], [-0.3, 0.0]])
+    np.testing.assert_allclose(outline.distance(0.0, 0.0, 0.0, points),
+                               [0.15, 0.2, 0.0, 0.05, 0.2], atol=1e-12)
+    # turned a quarter left and moved: the nose points along +y
+    np.testing.assert_allclose(outline.distance(1.0, 2.0, math.pi / 2, np.array([[1.0, 2.3]])),
+                               [0.15], atol=1e-12)
+
+
 # ------------------------------------------------------------------ regressions from the bench
-@pytest.mark.parametrize(("task", "policy", "seed"), [
-    ("Button1", "adversarial", 9209), ("Button2", "wrong_button", 9201)])
-def test_bench_episodes_that_had_cost_have_none(task: str, policy: str, seed: int) -> None:
-    """Two Point episodes of ``semdp-bench safety`` (development seeds) that had cost under
-    earlier rules: a gremlin ran over a robot that the filter held still in its way (gremlins
-    under a speed bound: 8 cost steps), and an escape from a region the robot found itself in
-    drove it into a hazard (before escapes kept out of the regions the robot is outside of: 9)."""
+@pytest.mark.parametrize(("robot", "task", "policy", "seed", "config"), [
+    ("point", "Button1", "adversarial", 9209, "eval"),
+    ("point", "Button2", "wrong_button", 9201, "eval"),
+    ("point", "Button1", "goal", 9604, "train"), ("point", "Button1", "goal", 9627, "eval"),
+    ("car", "Button2", "goal", 9630, "eval")])
+def test_bench_episodes_that_had_cost_have_none(robot: str, task: str, policy: str,
+                                                seed: int, config: str) -> None:
+    """Episodes of ``semdp-bench safety`` (development seeds) that had cost under earlier rules:
+    a gremlin ran over a robot that the filter held still in its way (gremlins under a speed
+    bound: 8 cost steps); an escape from a region the robot found itself in drove it into a
+    hazard (before escapes kept out of the regions the robot is outside of: 9); and, with
+    goal-seeking subgoals, the robot still touched the button it had just pressed when the
+    grace period ended (before the exit rule: 4 cost steps, the Point's nose swinging back into
+    the button as it turned; the exit rule with the gap measured from a disc of the robot's
+    extent rather than its outline: 2 and 3 cost steps, the Point's nose and the Car's
+    wheels)."""
     from semdp.benchmarks.safety import build_semdp_env, make_policy
     from semdp.embedded.safety_eval import evaluate_safety
 
-    env = build_semdp_env("point", task, "eval")
+    env = build_semdp_env(robot, task, config)
     stats = evaluate_safety(env, make_policy(policy, env, seed), 1, seed=seed)
     assert stats["episodes"] == 1 and stats["escape_rate"] > 0  # driven to the edge
     assert stats["cost_steps_total"] == 0

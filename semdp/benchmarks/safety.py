@@ -10,7 +10,10 @@ configuration (``wrapper``), and counts what leaks:
 * ``adversarial`` (hazard-seeking): every subgoal aimed at the nearest hazard (ground truth),
   2 m away at most;
 * ``wrong_button`` (Button tasks only; the other tasks have no such cell): every subgoal aimed
-  at the nearest button that is not the goal button (ground truth), 2 m away at most.
+  at the nearest button that is not the goal button (ground truth), 2 m away at most;
+* ``goal`` (Button tasks only): every subgoal aimed at the goal button, 2 m away at most -- what
+  a trained high level does: it presses button after button, so every episode crosses the grace
+  period (the robot on the button just pressed, which is a wrong button once the goal moves).
 
     semdp-bench safety                       # 3 robots x 6 tasks x 2-3 x 2 cells, 20 episodes
     semdp-bench safety robots=car tasks=Push2 policies=adversarial configs=eval episodes=5
@@ -50,9 +53,10 @@ from semdp.embedded.wrapper import SafetyEmbeddedEnv
 
 ROBOTS = ("point", "car", "mass")
 TASKS = ("Goal1", "Goal2", "Button1", "Button2", "Push1", "Push2")
-POLICIES = ("random", "adversarial", "wrong_button")
+POLICIES = ("random", "adversarial", "wrong_button", "goal")
 #: Policies that only apply to some tasks (their cells exist for those tasks only).
-POLICY_TASKS: dict[str, tuple[str, ...]] = {"wrong_button": ("Button1", "Button2")}
+POLICY_TASKS: dict[str, tuple[str, ...]] = {"wrong_button": ("Button1", "Button2"),
+                                             "goal": ("Button1", "Button2")}
 CONFIGS = ("eval", "train")
 
 
@@ -100,6 +104,8 @@ def make_policy(kind: str, env: SafetyEmbeddedEnv, seed: int) -> Callable[[np.nd
     def targets() -> np.ndarray:
         if kind == "wrong_button":
             return wrong_buttons(base)
+        if kind == "goal":
+            return np.asarray(base.goal_position, dtype=float).reshape(1, 2)
         hazards = np.asarray(base.obstacles(kinds=("hazards",))).reshape(-1, 3)
         if not len(hazards):  # no hazard in this task: aim at the nearest obstacle of any kind
             hazards = perceive_obstacles(base, np.zeros(0), "gt", env.obstacle_kinds)

@@ -44,6 +44,50 @@ def body_extent(robot: Robot) -> float:
     return extent
 
 
+@dataclass(frozen=True)
+class Outline:
+    """The robot's collision outline in its body frame: discs ``(cx, cy, r)`` and convex
+    polygons (vertex arrays), as the replica's robot builds them."""
+
+    discs: np.ndarray
+    polygons: tuple[np.ndarray, ...]
+
+    def distance(self, x: np.ndarray, y: np.ndarray, yaw: np.ndarray,
+                 points: np.ndarray) -> np.ndarray:
+        """Distance (m) from each of ``points`` ``(m, 2)`` (world frame) to the outline of the
+        robot with its root at ``(x, y)`` and body angle ``yaw`` (each a number or ``(k,)``
+        poses): ``(m,)`` or ``(k, m)``; 0 inside the outline."""
+        x, y, yaw = (np.asarray(v, dtype=np.float64) for v in (x, y, yaw))
+        c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
+        dx = points[:, 0] - x[..., None]
+        dy = points[:, 1] - y[..., None]
+        lx, ly = c * dx + s * dy, c * dy - s * dx                   # body frame, (..., m)
+        best = np.full(lx.shape, np.inf)
+        for cx, cy, r in self.discs:
+            best = np.minimum(best, np.hypot(lx - cx, ly - cy) - r)
+        for vertices in self.polygons:
+            ex, ey = (np.roll(vertices, -1, axis=0) - vertices).T     # edges, (v,)
+            rx, ry = lx[..., None] - vertices[:, 0], ly[..., None] - vertices[:, 1]
+            t = np.clip((rx * ex + ry * ey) / (ex * ex + ey * ey), 0.0, 1.0)
+            gap = np.hypot(rx - t * ex, ry - t * ey).min(axis=-1)
+            cross = ex * ry - ey * rx
+            inside = (cross >= 0.0).all(axis=-1) | (cross <= 0.0).all(axis=-1)
+            best = np.minimum(best, np.where(inside, 0.0, gap))
+        return np.maximum(best, 0.0)
+
+
+def body_outline(robot: Robot) -> Outline:
+    """The collision outline of ``robot`` (:class:`Outline`)."""
+    body = pymunk.Body(1.0, 1.0)
+    discs, polygons = [], []
+    for shape in robot.shapes(body):
+        if isinstance(shape, pymunk.Circle):
+            discs.append((shape.offset.x, shape.offset.y, shape.radius))
+        else:
+            polygons.append(np.array([(v.x, v.y) for v in shape.get_vertices()]))
+    return Outline(np.array(discs, dtype=np.float64).reshape(-1, 3), tuple(polygons))
+
+
 class RobotModel(Protocol):
     """What the safety filter needs of a robot."""
 
@@ -51,6 +95,8 @@ class RobotModel(Protocol):
     horizon: int
     #: Largest distance of the collision outline from the root node (m).
     extent: float
+    #: The collision outline itself (:class:`Outline`).
+    outline: Outline
     #: Actions tried when neither the proposed nor the backup action is certified.
     escapes: np.ndarray
 
@@ -84,6 +130,7 @@ class PointModel:
         self.yaw_actions, self.yaw_rates = r.yaw_actions, r.yaw_rates
         self.tau = r.mass / r.damping  # time constant of the damped slide joints (s)
         self.extent = body_extent(r)
+        self.outline = body_outline(r)
         self.horizon = 40  # 0.8 s: reverse thrust stops 1.5 m/s in about 0.4 s
         self._brake_rate = math.copysign(interp_clamped(self.yaw_actions, self.yaw_rates, 0.0),
                                          0.0)  # the yaw-rate command of the backup's a1 = 0
@@ -144,6 +191,7 @@ class CarModel:
         self.steady_state = r.steady_state
         self.lag = -r.h / math.log(r.decay)  # first-order time constant (s)
         self.extent = body_extent(r)
+        self.outline = body_outline(r)
         self.horizon = 30  # 0.6 s: about 4.6 time constants
         self._brake_steady = self.steady_state(0.0, 0.0)  # the backup's zero torques
         self.escapes = np.array([(a0, a1) for a0 in (-1.0, 0.0, 1.0) for a1 in (-1.0, 0.0, 1.0)])
@@ -199,6 +247,7 @@ class MassModel:
         self.h, self.substeps = r.h, r.substeps
         self.scale = r.max_delta / r.dt
         self.extent = body_extent(r)
+        self.outline = body_outline(r)
         self.horizon = 2
         angles = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
         self.escapes = np.vstack([np.stack([np.cos(angles), np.sin(angles)], axis=1),

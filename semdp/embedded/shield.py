@@ -44,6 +44,15 @@ no cost. Over the safety table both have no episode with cost, and ``"brake"`` r
 1.1-5.8x more commands where the filter acts on at least 1 % of them (the Point and the Car;
 outputs/reference/safety/COMMAND.md), so the default stays ``"escape"``.
 
+**Inside a contact region** (the Button tasks' grace period: the robot starts it touching the
+button it just pressed, which is a wrong button once the goal moves; a push that left it near a
+pillar) one step then braking barely moves a robot at rest, so the escape cannot tell a way out
+from a turn on the spot. There the escape holds each option for :data:`EXIT_STEPS` steps and
+takes the one that gets farthest out, measured from the robot's outline at its predicted
+heading rather than from a disc of its extent (:meth:`SafetyShield._exit`): with goal-seeking
+subgoals the Point's nose, swinging back into the button as the robot turned away, touched it
+after the grace period in 1 of 60 episodes on Button1 before this rule.
+
 A :attr:`SafetyShield.recorder`, when set, is given a :class:`FilterRecord` of every
 :meth:`SafetyShield.filter` call (the robot state it read, the proposed and applied actions,
 the branch taken); :mod:`semdp.evaluation.cost_trace` records the steps before a cost step with
@@ -81,6 +90,11 @@ BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
 
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
+
+#: Steps an escape from inside a region is held in :meth:`SafetyShield._exit`'s rollouts: the
+#: Button task's grace period after a press (``BUTTON_RESAMPLING_DELAY``), within which the robot
+#: must be off the button it pressed.
+EXIT_STEPS = 10
 
 #: Kinds whose cost is a contact with the robot's outline: their regions add the robot's extent.
 _CONTACT_KINDS = ("vases", "pillars", "gremlins", "buttons")
@@ -169,9 +183,14 @@ class SafetyShield:
 
     def cost_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """``(m, 3)`` rows ``[x, y, R]``: the cost regions plus the margin."""
+        return self._regions(base, obs)[0]
+
+    def _regions(self, base: Any, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`cost_regions` and, per row, whether its cost is a contact with the robot's
+        outline (its ``R`` then holds the robot's extent)."""
         if self.perception == "lidar" and self.lidar_bearing_bound:
             return self._bounded_lidar_regions(base, obs)
-        rows = []
+        rows, contact = [], []
         for kind in self.kinds:
             if kind not in self._radii:
                 continue
@@ -181,11 +200,12 @@ class SafetyShield:
                 found = np.array(found, dtype=np.float64)
                 found[:, 2] = self._radii[kind] + self.margin + self._orbit(base, kind)[1]
                 rows.append(found)
-        return np.concatenate(rows) if rows else np.zeros((0, 3))
+                contact.append(np.full(len(found), kind in _CONTACT_KINDS))
+        return _stack(rows, contact)
 
     def _lidar_channels(self, base: Any, obs: np.ndarray
-                        ) -> Iterator[tuple[float, np.ndarray, LidarFrame]]:
-        """``(cost radius + margin, shift, frame)`` of each filtered kind the robot senses
+                        ) -> Iterator[tuple[str, float, np.ndarray, LidarFrame]]:
+        """``(kind, cost radius + margin, shift, frame)`` of each filtered kind the robot senses
         (buttons: :func:`~semdp.embedded.perception.button_frame`, possibly remembered; the
         shift and the radius of a gremlin's orbit: :meth:`_orbit`)."""
         position = np.asarray(base.robot_position, dtype=np.float64)
@@ -201,19 +221,22 @@ class SafetyShield:
             else:
                 frame = LidarFrame(obs[base.obs_slices[key]], position, heading)
             shift, extra = self._orbit(base, kind)
-            yield self._radii[kind] + self.margin + extra, shift, frame
+            yield kind, self._radii[kind] + self.margin + extra, shift, frame
 
-    def _bounded_lidar_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
-        """Every lit bin of each kind's LiDAR, grown by its bearing error bound."""
-        rows = []
-        for radius, shift, frame in self._lidar_channels(base, obs):
+    def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray]:
+        """Every lit bin of each kind's LiDAR, grown by its bearing error bound (and the
+        contact flags of :meth:`_regions`)."""
+        rows, contact = [], []
+        for kind, radius, shift, frame in self._lidar_channels(base, obs):
             found = obstacles_from_lidar(frame.readings, frame.position, frame.heading,
                                          max_dist=LIDAR_RANGE, peaks_only=False)
             if len(found):
                 ranges = np.linalg.norm(found - frame.position, axis=1)
                 rows.append(np.column_stack([found + shift,
                                              radius + BEARING_ERROR_PER_METRE * ranges]))
-        return np.concatenate(rows) if rows else np.zeros((0, 3))
+                contact.append(np.full(len(found), kind in _CONTACT_KINDS))
+        return _stack(rows, contact)
 
     def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
         """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
@@ -223,7 +246,7 @@ class SafetyShield:
         bound = np.inf
         shrink = 1.0 - BEARING_ERROR_PER_METRE if self.lidar_bearing_bound else 1.0
         position = np.asarray(base.robot_position, dtype=np.float64)
-        for radius, shift, frame in self._lidar_channels(base, obs):
+        for _, radius, shift, frame in self._lidar_channels(base, obs):
             reading = float(frame.readings.max())
             if reading <= 0.0:
                 continue
@@ -281,11 +304,11 @@ class SafetyShield:
         reach = model.stopping_reach(state) + 0.1
         if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
             return action  # nothing any lit bin could hold is within reach: no reconstruction
-        regions = self.cost_regions(base, obs)
+        regions, contact = self._regions(base, obs)
         if not len(regions):
             return action
         distance = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
-        regions = regions[distance < reach]
+        regions, contact = regions[distance < reach], contact[distance < reach]
         if not len(regions):
             return action
         self.stats.checked += 1
@@ -297,11 +320,11 @@ class SafetyShield:
             return brake.astype(np.asarray(action).dtype)
         self.stats.escaped += 1
         options = [brake, *model.escapes]
-        return np.asarray(options[self._escape(model, state, options, regions)],
+        return np.asarray(options[self._escape(model, state, options, regions, contact)],
                           dtype=np.asarray(action).dtype)
 
     def _escape(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
-                regions: np.ndarray) -> int:
+                regions: np.ndarray, contact: np.ndarray) -> int:
         """The option whose step then braking keeps the largest clearance from ``regions``,
         among those that enter no region the robot is outside of now if there are any: getting
         out of one region (an orbit disc it finds itself in, a LiDAR region that lit around it)
@@ -309,11 +332,44 @@ class SafetyShield:
         scores = [self._clearance(model, state, a, regions) for a in options]
         best = int(np.argmax(scores))
         outside = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) >= regions[:, 2]
+        if scores[best] < 0.0 and (contact & ~outside).any():
+            return self._exit(model, state, options, regions, contact, outside)
         if scores[best] >= 0.0 or not outside.any() or outside.all():
             return best
         kept = [i for i, a in enumerate(options)
                 if self._clearance(model, state, a, regions[outside]) >= 0.0]
         return max(kept, key=scores.__getitem__) if kept and best not in kept else best
+
+    @staticmethod
+    def _exit(model: RobotModel, state: RobotState, options: list[np.ndarray],
+              regions: np.ndarray, contact: np.ndarray, outside: np.ndarray) -> int:
+        """Inside a region (a button just pressed, an orbit disc, a LiDAR region lit around the
+        robot): the option that, held for :data:`EXIT_STEPS` steps, gets farthest out of the
+        regions the robot is in, among those whose hold enters no region it is outside of if
+        there are any. A contact region's gap is measured from the robot's outline at its
+        predicted heading (:class:`~semdp.embedded.robot_models.Outline`), not from a disc of
+        its extent: a robot at rest moves a few centimetres in the grace period after a press,
+        and whether it touches the button again depends on where its nose (the Point) or its
+        wheels (the Car) swing, which a disc cannot tell."""
+        poses = np.empty((len(options), EXIT_STEPS, 3))
+        for i, a in enumerate(options):
+            s = state
+            for t in range(EXIT_STEPS):
+                s = model.step(s, a)
+                poses[i, t] = (s.x, s.y, s.yaw)
+        flat = poses.reshape(-1, 3)
+        gaps = np.linalg.norm(flat[:, None, :2] - regions[None, :, :2], axis=-1) - regions[:, 2]
+        exiting = contact & ~outside
+        if exiting.any():  # R without the robot's extent, from the outline
+            gaps[:, exiting] = model.outline.distance(
+                flat[:, 0], flat[:, 1], flat[:, 2], regions[exiting, :2]) - (
+                regions[exiting, 2] - model.extent)
+        gaps = gaps.reshape(len(options), EXIT_STEPS, -1)
+        exits = gaps[:, :, ~outside].min(axis=2).max(axis=1)
+        entries = (gaps[:, :, outside].min(axis=(1, 2)) if outside.any()
+                   else np.zeros(len(options)))
+        kept = [i for i in range(len(options)) if entries[i] >= 0.0] or list(range(len(options)))
+        return max(kept, key=exits.__getitem__)
 
 
 class ShieldedEnv(gym.Wrapper):
@@ -346,3 +402,10 @@ class ShieldedEnv(gym.Wrapper):
         self._obs = obs
         info["shield_replaced"] = safe is not action and not np.array_equal(safe, action)
         return obs, reward, terminated, truncated, info
+
+
+def _stack(rows: list[np.ndarray], contact: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Region rows ``(m, 3)`` and their contact flags ``(m,)`` from per-kind lists."""
+    if not rows:
+        return np.zeros((0, 3)), np.zeros(0, dtype=bool)
+    return np.concatenate(rows), np.concatenate(contact)
