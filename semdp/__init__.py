@@ -5,4 +5,9 @@ the self-paced Lagrangian toy NLP) and :mod:`sims` (pymunk Safety Gym replica an
 tasks) -- with torch RL algorithms, the Safety-Embedded MDP wrapper and the Hydra apps.
 """
 
+from semdp.numerics import pin_cpu_kernels
+
 __version__ = "0.1.0"
+
+# Before anything imports torch: the same seed, the same bits on every x86-64 machine.
+pin_cpu_kernels()

@@ -6,7 +6,12 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
+
+# isort: off
+import semdp  # noqa: F401  (before torch: pins the CPU kernels, semdp.numerics)
 import torch
+
+# isort: on
 from omegaconf import DictConfig, open_dict
 
 from semdp.configs import compose_config

@@ -1,0 +1,51 @@
+"""Pinned CPU kernels, so that the same seed gives the same numbers on every x86-64 machine.
+
+torch's linear algebra runs on MKL, which by default picks its code path by the processor
+(AVX2, AVX-512, ...) and, on some, by the memory alignment of each array: the same seed then
+gives a different last bit on another machine, or in a helper process of the same machine,
+and a closed-loop rollout amplifies that bit into a different episode within a few hundred
+steps (a committed policy's 50-episode evaluation moves by about 0.1). Measured on an AVX-512
+AMD EPYC: with MKL's defaults, PPO-Lag with and without its helper processes diverged at the
+second epoch and every golden learning curve differed from the one recorded on an AVX2
+machine; with the pin below the helper runs agree and every re-run is bit-identical.
+
+:func:`pin_cpu_kernels` sets, before torch is imported and only where the user has not:
+
+* ``MKL_CBWR=AVX2`` -- MKL's conditional numerical reproducibility: the AVX2 code path on
+  every processor that has it, the same bits whatever the alignment;
+* ``ATEN_CPU_CAPABILITY=avx2`` -- torch's own vectorised kernels at the same level.
+
+x86-64 only (elsewhere there is no MKL). ``SEMDP_FREE_KERNELS=1`` leaves both unset (the
+processor's fastest paths; runs are then reproducible on that machine kind only).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+
+#: The environment this module sets (each only if unset).
+PINNED: dict[str, str] = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2"}
+
+
+def _has_avx2() -> bool:
+    try:
+        with open("/proc/cpuinfo") as f:
+            return any(line.startswith("flags") and " avx2" in line for line in f)
+    except OSError:  # not Linux: trust the architecture (every x86-64 we run on has AVX2)
+        return True
+
+
+def pin_cpu_kernels() -> dict[str, str]:
+    """Set :data:`PINNED` where unset (x86-64 with AVX2, unless ``SEMDP_FREE_KERNELS=1``);
+    return what was set. Must run before torch is imported to take effect."""
+    if os.environ.get("SEMDP_FREE_KERNELS") == "1":
+        return {}
+    if platform.machine().lower() not in ("x86_64", "amd64") or not _has_avx2():
+        return {}
+    done = {}
+    for key, value in PINNED.items():
+        if key not in os.environ:
+            os.environ[key] = value
+            done[key] = value
+    return done
