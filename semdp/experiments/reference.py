@@ -32,10 +32,25 @@ from semdp.reporting.tables import parse_compare, parse_marks, write_report
 RUNS_DIR = "runs"
 
 
+def _cpu_model() -> str:
+    """The processor's model name (Linux), or the architecture."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def this_machine() -> str:
-    """The machine the reference is built on: cores, architecture and Python."""
-    return (f"{os.cpu_count()} logical CPUs ({platform.machine()}), "
-            f"{platform.python_implementation()} {platform.python_version()}")
+    """The machine the reference is built on: cores, processor, architecture, Python and the
+    CPU kernels' pin (:mod:`semdp.numerics`: MKL's code path decides the last bits)."""
+    pin = os.environ.get("MKL_CBWR", "unpinned")
+    return (f"{os.cpu_count()} logical CPUs ({_cpu_model()}, {platform.machine()}), "
+            f"{platform.python_implementation()} {platform.python_version()}, "
+            f"MKL_CBWR={pin}")
 
 
 def sweep_command(sweep_dir: Path) -> str:
