@@ -419,3 +419,23 @@ def test_cost_limit_is_read_from_config_and_drawn_only_when_shared(tmp_path: Pat
     assert ours.cost_limit == 25.0 and ours.unconstrained and not runs[0].unconstrained
     assert shared_cost_limit([*runs[:2], ours]) == 25.0
     assert shared_cost_limit([ours]) is None
+
+
+def test_a_run_is_named_by_the_task_it_stepped(tmp_path: Path) -> None:
+    """``env=semdp_point_push1 env.task=Button1`` records the option's name; the table names
+    the task in the config's env id."""
+    from semdp.reporting.names import env_name_from_id
+    from semdp.reporting.runs import load_run
+
+    assert env_name_from_id("sims/SafetyPointButton1-v0") == "PointButton1"
+    assert env_name_from_id("sims/DriveCircle-v0") is None
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.json").write_text(json.dumps(
+        {"status": "completed", "algo": "sac", "env": "semdp_point_push1", "seed": 0,
+         "label": "Ours", "eval": {"return_mean": 1.0, "cost_mean": 0.0}}))
+    (run / "config.yaml").write_text(
+        "env:\n  task: Button1\n  id: sims/SafetyPointButton1-v0\nseed: 0\n")
+    assert load_run(run).env == "PointButton1"
+    (run / "config.yaml").write_text("seed: 0\n")
+    assert load_run(run).env == "PointPush1"

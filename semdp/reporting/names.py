@@ -14,6 +14,7 @@ ALGORITHMS: dict[str, str] = {
     "trpo_lag": "TRPO-Lag", "cpo": "CPO", "sac": "SAC",
 }
 _SAFETY_GYM = re.compile(r"^(?:semdp_)?(point|car|mass)_(goal|button|push)(\d)$")
+_SAFETY_GYM_ID = re.compile(r"Safety(Point|Car|Mass)(Goal|Button|Push)(\d)-v\d+$")
 _DRIVING = re.compile(r"^drive_(circle|trajectory)(?:_v(\d+(?:\.\d+)?))?$")
 
 
@@ -35,3 +36,11 @@ def env_name(name: str) -> str:
         track, speed = match.groups()
         return track.capitalize() + (f" {float(speed):g} m/s" if speed else "")
     return name
+
+
+def env_name_from_id(env_id: str) -> str | None:
+    """``sims/SafetyPointButton1-v0`` -> ``PointButton1``: the task a run stepped, whatever
+    option composed it (``env=semdp_point_push1 env.task=Button1`` steps PointButton1); None
+    for any other id."""
+    match = _SAFETY_GYM_ID.search(env_id)
+    return "".join(match.groups()) if match else None

@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from semdp.reporting.names import algorithm_name, env_name
+from semdp.reporting.names import algorithm_name, env_name, env_name_from_id
 
 logger = logging.getLogger(__name__)
 
@@ -146,22 +146,26 @@ def _read_metrics(path: Path) -> tuple[dict[str, Any] | None, str | None]:
 
 def _read_config_names(path: Path) -> dict[str, Any]:
     """``label``/``algo_name``/``env_name``/``seed``/``cost_limit`` from ``config.yaml``
-    (top-level keys), and ``algo_cost_limit``: whether the ``algo`` block has a ``cost_limit``
-    key at any depth (the constrained algorithms' resolved limit)."""
+    (top-level keys), ``env_id`` (the env block's ``id``), and ``algo_cost_limit``: whether
+    the ``algo`` block has a ``cost_limit`` key at any depth (the constrained algorithms'
+    resolved limit)."""
     file = path / CONFIG_NAME
     names: dict[str, Any] = {}
     if not file.is_file():
         return names
-    in_algo = False
+    in_algo = in_env = False
     names["algo_cost_limit"] = False
     for line in file.read_text(errors="replace").splitlines():
         if in_algo and line.startswith((" ", "\t")):
             names["algo_cost_limit"] |= line.strip().startswith("cost_limit:")
             continue
+        if in_env and line.startswith("  id:"):
+            names["env_id"] = line.partition(":")[2].strip().strip("'\"")
+            continue
         if line.startswith((" ", "\t", "#")) or ":" not in line:
             continue
         key, _, value = line.partition(":")
-        in_algo = key == "algo"
+        in_algo, in_env = key == "algo", key == "env"
         if key in {"label", "algo_name", "env_name", "seed", "cost_limit"} and value.strip():
             names[key] = value.strip().strip("'\"")
     return names
@@ -237,6 +241,12 @@ def pretrain_steps(path: Path) -> int:
         return 0
 
 
+def _env(names: dict[str, Any], recorded: str) -> str:
+    """The env's name for tables: the Safety Gym task the run stepped (from the config's env
+    id: ``env=semdp_point_push1 env.task=Button1`` is PointButton1), else the recorded name."""
+    return env_name_from_id(str(names.get("env_id", ""))) or env_name(recorded)
+
+
 def load_run(path: Path) -> RunRecord:
     """Read one run directory; never raises on missing or malformed files."""
     path = Path(path)
@@ -251,7 +261,7 @@ def load_run(path: Path) -> RunRecord:
     unconstrained = names.get("algo_cost_limit") is False
     if metrics is None:
         label = str(names.get("label") or algorithm_name(str(names.get("algo_name") or UNKNOWN)))
-        env = env_name(str(names.get("env_name") or UNKNOWN))
+        env = _env(names, str(names.get("env_name") or UNKNOWN))
         seed_text = names.get("seed")
         seed = int(seed_text) if isinstance(seed_text, str) and seed_text.isdigit() else None
         status = "no metrics.json" if metrics_problem == "no metrics.json" else "unreadable"
@@ -273,7 +283,7 @@ def load_run(path: Path) -> RunRecord:
         status=status,
         error=str(metrics["error"]) if metrics.get("error") else None,
         label=str(metrics.get("label") or algorithm_name(str(metrics.get("algo") or UNKNOWN))),
-        env=env_name(str(metrics.get("env") or UNKNOWN)),
+        env=_env(names, str(metrics.get("env") or UNKNOWN)),
         seed=int(seed) if isinstance(seed, int) and not isinstance(seed, bool) else None,
         eval_return=eval_return,
         eval_cost=eval_cost,
