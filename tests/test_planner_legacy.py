@@ -108,7 +108,10 @@ def test_planners_pickled_by_the_old_code_plan_as_they_did() -> None:
     for name, planner in planners.items():
         assert planner.memory.previous is not None, name
         result = planner.plan(*fixture["problem"], warm_start=True)
-        np.testing.assert_array_equal(result.waypoints, fixture["expected_waypoints"][name])
+        # the same plan to the last few bits: numpy's and IPOPT's kernels depend on the processor
+        # (an AVX-512 machine differs from the recording by up to 2e-11 m, IPOPT at tol 1e-6)
+        np.testing.assert_allclose(result.waypoints, fixture["expected_waypoints"][name],
+                                   rtol=0.0, atol=1e-9)
     again = pickle.loads(pickle.dumps(planners["lm_rescue"]))  # and they pickle the new way
     assert again.settings == planners["lm_rescue"].settings
 
