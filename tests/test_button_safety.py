@@ -248,6 +248,36 @@ def test_outline_distance_at_hand_computed_points() -> None:
                                [0.15], atol=1e-12)
 
 
+def _mass_pressing_inside_orbits(seed: int, home_y: float, shield: SafetyShield) -> tuple:
+    """(wrong-button cost steps, gremlin cost steps, presses) of a Mass started against the goal
+    button (0.25 m from button 0, pushed on into it at full speed for 120 steps) between two
+    gremlins whose homes are 0.65-0.75 m away (their orbits clear of the robot's contact with
+    the button, their LiDAR orbit discs around it)."""
+    env, _ = _button_env("mass", seed, shield, gremlins=[(0.6, home_y), (0.6, -home_y)],
+                         agent=(0.75, 0.0))
+    assert env.unwrapped.goal_button == 0
+    costs = np.zeros(3)
+    for _ in range(120):
+        _, _, _, _, info = env.step(np.array(FULL["mass"]))
+        costs += (info["cost_buttons"], info["cost_gremlins"], info["goal_met"])
+    return tuple(costs)
+
+
+@pytest.mark.parametrize(("seed", "home_y"), [(7, 0.6), (6, 0.65)])
+def test_a_mass_inside_orbit_discs_leaves_the_button_it_pressed(seed: int,
+                                                               home_y: float) -> None:
+    """The exit from a just-pressed button ranks the button's region before the orbit discs the
+    robot is also in. Under the rule that took the smallest gap over all of them, the discs
+    (which the robot cannot leave within the grace period) chose the escapes, which alternated
+    between directions on the button: 104 and 1 wrong-button cost steps here (checked with that
+    rule patched in), as on a trained MassButton1 run (1.9 cost per episode in its epoch 5,
+    0 when that epoch is replayed under this rule; outputs/reference/semdp_button1)."""
+    shield = SafetyShield(perception="lidar")
+    buttons, gremlins, presses = _mass_pressing_inside_orbits(seed, home_y, shield)
+    assert presses >= 1 and shield.stats.escaped > 0
+    assert buttons == 0.0 and gremlins == 0.0
+
+
 # ------------------------------------------------------------------ regressions from the bench
 @pytest.mark.parametrize(("robot", "task", "policy", "seed", "config"), [
     ("point", "Button1", "adversarial", 9209, "eval"),

@@ -1,11 +1,19 @@
 """The cost trace (semdp.evaluation.cost_trace) and the recorder hooks it uses: a planted hazard
-next to the robot, fields against hand-computed values, and no change without a recorder."""
+next to the robot, fields against hand-computed values, no change without a recorder, and the
+replay of a run's next epoch against the uninterrupted run."""
 
 from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from omegaconf import OmegaConf
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded.follower import ProportionalFollower
@@ -13,7 +21,8 @@ from semdp.embedded.robot_models import RobotState, robot_model
 from semdp.embedded.shield import SafetyShield
 from semdp.embedded.straight import StraightLinePlanner
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
-from semdp.evaluation.cost_trace import CostTracer, recording
+from semdp.evaluation.cost_trace import TRACE_NAME, CostTracer, recording, replay_epoch
+from semdp.evaluation.errors import EvalError
 
 HAZARD = (0.4, 0.0)
 MARGIN = 0.05
@@ -72,6 +81,10 @@ def test_a_recorded_step_has_the_planted_state_and_hand_computed_clearances() ->
         _clearance_by_hand(brake, radius + MARGIN), abs=1e-12)
     assert row["action_clear_perceived"] == pytest.approx(
         _clearance_by_hand(np.array([1.0, 0.0]), radius + MARGIN), abs=1e-12)
+    # within 1 m: the hazard's region (x, y, R + margin, not a contact) and the hazard itself;
+    # the vase at (-1.5, 1.5) is 2 m away
+    assert row["regions"] == [[0.4, 0.0, radius + MARGIN, 0.0]]
+    assert row["objects"] == {"hazards": [[0.4, 0.0, radius]]}
     assert row["cost"] == 0.0 and row["t"] == 1
     assert row["plan_escape"] is False and row["plan_fallback"] is False
     assert tracer.dumps == []
@@ -94,7 +107,9 @@ def test_the_dump_holds_the_last_steps_up_to_the_first_cost_step() -> None:
     assert [s["cost"] > 0 for s in steps] == [False, False, False, True]
     first = steps[-1]["t"]
     assert [s["t"] for s in steps] == [first - 3, first - 2, first - 1, first]
-    assert set(steps[-1]) == {"cost", "t", "plan_escape", "plan_fallback"}  # no filter fields
+    assert set(steps[-1]) == {"cost", "cost_terms", "t", "plan_escape",
+                              "plan_fallback"}  # no filter fields
+    assert steps[-1]["cost_terms"] == ["cost_hazards"] and steps[-2]["cost_terms"] == []
     k = next(i for i, cost in enumerate(costs) if cost > 0)  # its high-level step
     assert 10 * k < first <= 10 * (k + 1)
 
@@ -129,3 +144,33 @@ def test_recording_changes_nothing_and_ends_with_its_context() -> None:
     assert SafetyShield.recorder is None and SafetyEmbeddedEnv.recorder is None
     with pytest.raises(ValueError, match="steps"):
         CostTracer(steps=0)
+
+
+def test_the_replay_trains_exactly_the_next_epoch_and_writes_nothing_to_the_run(
+        tmp_path: Path) -> None:
+    """A ``budget=ci`` main job stopped after epoch 3 of 4, replayed from its checkpoint, gives
+    the training statistics of epoch 4 of the same seed's 4-epoch run; the run directory is left
+    as it was; a run whose checkpoint is its last epoch has nothing to replay."""
+    short, full = tmp_path / "short", tmp_path / "full"
+    for run_dir, steps in ((short, 1200), (full, 1600)):
+        subprocess.run([sys.executable, "-m", "semdp.cli.train", "experiment=semdp", "budget=ci",
+                        f"total_steps={steps}", "seed=3", "algo.learning_starts=200",
+                        "tensorboard=false",
+                        f"hydra.run.dir={run_dir}"], check=True, capture_output=True,
+                       timeout=600)
+    config = OmegaConf.load(short / "config.yaml")  # as if stopped after epoch 3 of 4
+    config.total_steps = 1600
+    OmegaConf.save(config, short / "config.yaml")
+    before = sorted((p.name, p.stat().st_mtime_ns) for p in short.rglob("*"))
+    dumps, stats = replay_epoch(short, tmp_path / "trace")
+    assert sorted((p.name, p.stat().st_mtime_ns) for p in short.rglob("*")) == before
+    assert json.loads((tmp_path / "trace" / TRACE_NAME).read_text()) == dumps
+    with open(full / "progress.csv", newline="") as f:
+        row = list(csv.DictReader(f))[3]
+    assert stats["epoch"] == 4 == int(row["epoch"])
+    for key in ("ep_return", "ep_cost", "loss_q", "loss_pi", "alpha", "entropy"):
+        assert stats[key] == pytest.approx(float(row[key]), rel=1e-12, abs=1e-12), key
+    with pytest.raises(EvalError, match="nothing to replay"):
+        replay_epoch(full, tmp_path / "trace_full")
+    with pytest.raises(EvalError, match="exists"):
+        replay_epoch(short, tmp_path / "trace")

@@ -48,10 +48,13 @@ outputs/reference/safety/COMMAND.md), so the default stays ``"escape"``.
 button it just pressed, which is a wrong button once the goal moves; a push that left it near a
 pillar) one step then braking barely moves a robot at rest, so the escape cannot tell a way out
 from a turn on the spot. There the escape holds each option for :data:`EXIT_STEPS` steps and
-takes the one that gets farthest out, measured from the robot's outline at its predicted
-heading rather than from a disc of its extent (:meth:`SafetyShield._exit`): with goal-seeking
-subgoals the Point's nose, swinging back into the button as the robot turned away, touched it
-after the grace period in 1 of 60 episodes on Button1 before this rule.
+takes the one that soonest stays out of the static regions it can leave (a button, not a
+gremlin's orbit disc, which it may be deep inside), then the one that gets farthest out, with
+gaps measured from the robot's outline at its predicted heading rather than from a disc of its
+extent (:meth:`SafetyShield._exit`): with goal-seeking subgoals the Point's nose, swinging back
+into the button as the robot turned away, touched it after the grace period in 1 of 60
+episodes on Button1 before the hold and the outline, and a trained Mass inside two orbit discs
+stayed on the button it had pressed before the static regions came first.
 
 A :attr:`SafetyShield.recorder`, when set, is given a :class:`FilterRecord` of every
 :meth:`SafetyShield.filter` call (the robot state it read, the proposed and applied actions,
@@ -185,12 +188,14 @@ class SafetyShield:
         """``(m, 3)`` rows ``[x, y, R]``: the cost regions plus the margin."""
         return self._regions(base, obs)[0]
 
-    def _regions(self, base: Any, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _regions(self, base: Any, obs: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`cost_regions` and, per row, whether its cost is a contact with the robot's
-        outline (its ``R`` then holds the robot's extent)."""
+        outline (its ``R`` then holds the robot's extent) and whether it is a gremlin's orbit
+        disc (a moving object's: inside it the gremlin may come, elsewhere on its orbit)."""
         if self.perception == "lidar" and self.lidar_bearing_bound:
             return self._bounded_lidar_regions(base, obs)
-        rows, contact = [], []
+        rows, contact, orbit = [], [], []
         for kind in self.kinds:
             if kind not in self._radii:
                 continue
@@ -201,7 +206,8 @@ class SafetyShield:
                 found[:, 2] = self._radii[kind] + self.margin + self._orbit(base, kind)[1]
                 rows.append(found)
                 contact.append(np.full(len(found), kind in _CONTACT_KINDS))
-        return _stack(rows, contact)
+                orbit.append(np.full(len(found), kind == "gremlins"))
+        return _stack(rows, contact, orbit)
 
     def _lidar_channels(self, base: Any, obs: np.ndarray
                         ) -> Iterator[tuple[str, float, np.ndarray, LidarFrame]]:
@@ -224,10 +230,10 @@ class SafetyShield:
             yield kind, self._radii[kind] + self.margin + extra, shift, frame
 
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
-                               ) -> tuple[np.ndarray, np.ndarray]:
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every lit bin of each kind's LiDAR, grown by its bearing error bound (and the
-        contact flags of :meth:`_regions`)."""
-        rows, contact = [], []
+        flags of :meth:`_regions`)."""
+        rows, contact, orbit = [], [], []
         for kind, radius, shift, frame in self._lidar_channels(base, obs):
             found = obstacles_from_lidar(frame.readings, frame.position, frame.heading,
                                          max_dist=LIDAR_RANGE, peaks_only=False)
@@ -236,7 +242,8 @@ class SafetyShield:
                 rows.append(np.column_stack([found + shift,
                                              radius + BEARING_ERROR_PER_METRE * ranges]))
                 contact.append(np.full(len(found), kind in _CONTACT_KINDS))
-        return _stack(rows, contact)
+                orbit.append(np.full(len(found), kind == "gremlins"))
+        return _stack(rows, contact, orbit)
 
     def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
         """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
@@ -304,11 +311,11 @@ class SafetyShield:
         reach = model.stopping_reach(state) + 0.1
         if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
             return action  # nothing any lit bin could hold is within reach: no reconstruction
-        regions, contact = self._regions(base, obs)
+        regions, contact, orbit = self._regions(base, obs)
         if not len(regions):
             return action
-        distance = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2]
-        regions, contact = regions[distance < reach], contact[distance < reach]
+        near = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2] < reach
+        regions, contact, orbit = regions[near], contact[near], orbit[near]
         if not len(regions):
             return action
         self.stats.checked += 1
@@ -320,11 +327,11 @@ class SafetyShield:
             return brake.astype(np.asarray(action).dtype)
         self.stats.escaped += 1
         options = [brake, *model.escapes]
-        return np.asarray(options[self._escape(model, state, options, regions, contact)],
+        return np.asarray(options[self._escape(model, state, options, regions, contact, orbit)],
                           dtype=np.asarray(action).dtype)
 
     def _escape(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
-                regions: np.ndarray, contact: np.ndarray) -> int:
+                regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray) -> int:
         """The option whose step then braking keeps the largest clearance from ``regions``,
         among those that enter no region the robot is outside of now if there are any: getting
         out of one region (an orbit disc it finds itself in, a LiDAR region that lit around it)
@@ -333,7 +340,7 @@ class SafetyShield:
         best = int(np.argmax(scores))
         outside = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) >= regions[:, 2]
         if scores[best] < 0.0 and (contact & ~outside).any():
-            return self._exit(model, state, options, regions, contact, outside)
+            return self._exit(model, state, options, regions, contact, orbit, outside)
         if scores[best] >= 0.0 or not outside.any() or outside.all():
             return best
         kept = [i for i, a in enumerate(options)
@@ -342,15 +349,26 @@ class SafetyShield:
 
     @staticmethod
     def _exit(model: RobotModel, state: RobotState, options: list[np.ndarray],
-              regions: np.ndarray, contact: np.ndarray, outside: np.ndarray) -> int:
+              regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray,
+              outside: np.ndarray) -> int:
         """Inside a region (a button just pressed, an orbit disc, a LiDAR region lit around the
-        robot): the option that, held for :data:`EXIT_STEPS` steps, gets farthest out of the
-        regions the robot is in, among those whose hold enters no region it is outside of if
-        there are any. A contact region's gap is measured from the robot's outline at its
-        predicted heading (:class:`~semdp.embedded.robot_models.Outline`), not from a disc of
-        its extent: a robot at rest moves a few centimetres in the grace period after a press,
-        and whether it touches the button again depends on where its nose (the Point) or its
-        wheels (the Car) swing, which a disc cannot tell."""
+        robot): the option that, held for :data:`EXIT_STEPS` steps, leaves the most of the
+        static regions it is in that it can leave (every kind but a gremlin's orbit disc) and
+        stays out of them, soonest; ties go to the option that gets farthest out of all the
+        regions it is in. Only options whose hold enters no region the robot is outside of
+        count, if there are any.
+
+        A static region it is in is a cost at hand (a button whose grace period is running
+        out); an orbit disc it is in is a cost only if the gremlin comes round. A score that
+        mixed the two let a disc the robot was deep inside choose: on a trained MassButton1 run
+        the escapes alternated between opposite directions on a just-pressed button until its
+        grace period ended. Ranking by the step from which the robot stays out also makes the
+        choice consistent from step to step (the model's own exit, one step on, is one step
+        sooner). A contact region's gap is measured from the robot's outline at its predicted
+        heading (:class:`~semdp.embedded.robot_models.Outline`), not from a disc of its extent:
+        a robot at rest moves a few centimetres in the grace period after a press, and whether
+        it touches the button again depends on where its nose (the Point) or its wheels (the
+        Car) swing, which a disc cannot tell."""
         poses = np.empty((len(options), EXIT_STEPS, 3))
         for i, a in enumerate(options):
             s = state
@@ -365,11 +383,18 @@ class SafetyShield:
                 flat[:, 0], flat[:, 1], flat[:, 2], regions[exiting, :2]) - (
                 regions[exiting, 2] - model.extent)
         gaps = gaps.reshape(len(options), EXIT_STEPS, -1)
-        exits = gaps[:, :, ~outside].min(axis=2).max(axis=1)
+        depth = gaps[:, :, ~outside].min(axis=2).max(axis=1)
+        static = gaps[:, :, ~outside & ~orbit]
+        # per option and static region: the first step from which the hold stays out
+        stays_out = np.flip(np.logical_and.accumulate(np.flip(static >= 0.0, axis=1), axis=1),
+                            axis=1)
+        left = stays_out.any(axis=1)  # (options, regions)
+        count = left.sum(axis=1)
+        when = np.where(left, stays_out.argmax(axis=1), 0).max(axis=1, initial=0)
         entries = (gaps[:, :, outside].min(axis=(1, 2)) if outside.any()
                    else np.zeros(len(options)))
         kept = [i for i in range(len(options)) if entries[i] >= 0.0] or list(range(len(options)))
-        return max(kept, key=exits.__getitem__)
+        return min(kept, key=lambda i: (-count[i], when[i], -depth[i]))
 
 
 class ShieldedEnv(gym.Wrapper):
@@ -404,8 +429,9 @@ class ShieldedEnv(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
 
-def _stack(rows: list[np.ndarray], contact: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Region rows ``(m, 3)`` and their contact flags ``(m,)`` from per-kind lists."""
+def _stack(rows: list[np.ndarray], contact: list[np.ndarray], orbit: list[np.ndarray]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Region rows ``(m, 3)`` and their contact and orbit flags ``(m,)`` from per-kind lists."""
     if not rows:
-        return np.zeros((0, 3)), np.zeros(0, dtype=bool)
-    return np.concatenate(rows), np.concatenate(contact)
+        return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
+    return np.concatenate(rows), np.concatenate(contact), np.concatenate(orbit)

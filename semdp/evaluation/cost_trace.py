@@ -4,14 +4,15 @@ one training episode with cost in outputs/reference/semdp_converged/COMMAND.md).
 
     python -m semdp.evaluation.cost_trace <run dir> <out dir> [--steps 60]
 
-Copies ``<run dir>`` (a SEMDP run with ``config.yaml`` and ``checkpoints/last.pt``) to the new
-``<out dir>``, resumes the copy for one more epoch as ``semdp-train resume=<out dir>`` would
-(no final evaluation, no post-training hook, no TensorBoard) while a :class:`CostTracer`
-records every :class:`~semdp.embedded.shield.SafetyShield` call and every low-level step of the
-:class:`~semdp.embedded.wrapper.SafetyEmbeddedEnv` envs in this process, and writes
+Loads ``<run dir>``'s checkpoint (``config.yaml`` and ``checkpoints/last.pt``; the run itself is
+not touched) and trains exactly one more epoch from it, as the run did after that checkpoint
+(no evaluation, no checkpoint, no progress row), while a :class:`CostTracer` records every
+:class:`~semdp.embedded.shield.SafetyShield` call and every low-level step of the
+:class:`~semdp.embedded.wrapper.SafetyEmbeddedEnv` envs in this process. It writes
 ``<out dir>/cost_trace.json``: a list with one entry per env that incurred cost in the epoch,
 ``{"env": id, "hazards": [[x, y, r], ...], "steps": [...]}``, its last ``--steps`` low-level
-steps up to and including its first cost step. A step's fields:
+steps up to and including its first cost step, and prints the epoch's training statistics (to
+compare with the run's ``progress.csv`` row of that epoch: a replay is exact). A step's fields:
 
 * from the filter (absent for an env without one), all before the step: ``pos``, ``vel``,
   ``yaw``, ``w`` (the robot state the filter read), ``proposed`` and ``applied`` (the
@@ -22,11 +23,14 @@ steps up to and including its first cost step. A step's fields:
   smallest ``distance - R`` over one step then the braking manoeuvre, against every cost region
   the filter perceives; None when it perceives none), ``brake_clear_true`` and
   ``applied_clear_true`` (braking and the applied action against the true hazards, no margin;
-  None without hazards) and ``min_true`` (the root's distance to the nearest true hazard's
-  edge);
-* from the step: ``cost`` (the inner env's cost of the step), ``t`` (the env's lifetime
-  low-level step count, this step included), ``plan_escape`` and ``plan_fallback`` (the
-  window's plan).
+  None without hazards), ``min_true`` (the root's distance to the nearest true hazard's
+  edge), ``regions`` (the perceived regions within :data:`NEAR` m of their edge, rows
+  ``[x, y, R, contact]``) and ``objects`` (the true objects of each kind within :data:`NEAR` m
+  of their edge, rows ``[x, y, r]``; on Button tasks also ``goal_button`` and
+  ``button_timer``, the grace period's steps left);
+* from the step: ``cost`` (the inner env's cost of the step), ``cost_terms`` (its named cost
+  terms that were not zero, e.g. ``cost_buttons``), ``t`` (the env's lifetime low-level step
+  count, this step included), ``plan_escape`` and ``plan_fallback`` (the window's plan).
 
 The recording uses the filter's and the wrapper's ``recorder`` hooks; without a recorder
 neither records anything.
@@ -35,10 +39,8 @@ neither records anything.
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import math
-import shutil
 from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -47,7 +49,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from omegaconf import DictConfig, OmegaConf, open_dict
+from omegaconf import DictConfig
 
 from semdp.algos.base import CHECKPOINT_NAME
 from semdp.build import build_algorithm, validate_config
@@ -55,12 +57,13 @@ from semdp.embedded.shield import FilterRecord, SafetyShield
 from semdp.embedded.wrapper import LowLevelRecord, SafetyEmbeddedEnv
 from semdp.evaluation.errors import EvalError
 from semdp.run_config import load_run_config
-from semdp.run_logging import progress_logging
 
 #: The trace's file name in the output directory.
 TRACE_NAME = "cost_trace.json"
 #: Steps kept per env before (and including) its first cost step.
 DEFAULT_STEPS = 60
+#: A step's ``regions`` and ``objects`` hold those whose edge is within this distance (m).
+NEAR = 1.0
 #: ``branch`` as the filter's counter increments ``[checked, braked, escaped]``.
 BRANCH_COUNTS: dict[str, tuple[int, int, int]] = {
     "unchecked": (0, 0, 0), "kept": (1, 0, 0), "braked": (1, 1, 0), "escaped": (1, 0, 1),
@@ -70,6 +73,20 @@ BRANCH_COUNTS: dict[str, tuple[int, int, int]] = {
 def _hazards(base: Any) -> np.ndarray:
     """``(n, 3)`` rows ``[x, y, r]`` of the env's true hazards."""
     return np.asarray(base.obstacles(("hazards",)), dtype=np.float64).reshape(-1, 3)
+
+
+def _near_objects(base: Any, x: float, y: float) -> dict[str, Any]:
+    """The true objects of each kind whose edge is within :data:`NEAR` of ``(x, y)`` (and the
+    Button task's goal button and grace-period timer)."""
+    out: dict[str, Any] = {}
+    for kind, rows in base.obstacles_by_type().items():
+        gaps = np.hypot(rows[:, 0] - x, rows[:, 1] - y) - rows[:, 2]
+        if (gaps < NEAR).any():
+            out[kind] = rows[gaps < NEAR].tolist()
+    if getattr(base, "buttons", None):
+        out["goal_button"] = list(base.buttons[base.goal_button])
+        out["button_timer"] = int(base.button_timer)
+    return out
 
 
 def filter_fields(record: FilterRecord) -> dict[str, Any]:
@@ -96,7 +113,19 @@ def filter_fields(record: FilterRecord) -> dict[str, Any]:
         "applied_clear_true": clearance(record.applied, hazards),
         "min_true": (float(min(math.hypot(state.x - h[0], state.y - h[1]) - h[2]
                                for h in hazards)) if len(hazards) else None),
+        "regions": _near_regions(shield, record, state.x, state.y),
+        "objects": _near_objects(record.base, state.x, state.y),
     }
+
+
+def _near_regions(shield: SafetyShield, record: FilterRecord, x: float, y: float
+                  ) -> list[list[float]]:
+    """The filter's regions (rows ``[x, y, R, contact]``) within :data:`NEAR` of their edge."""
+    regions, contact, _ = shield._regions(record.base, record.obs)
+    if not len(regions):
+        return []
+    near = np.hypot(regions[:, 0] - x, regions[:, 1] - y) - regions[:, 2] < NEAR
+    return np.column_stack([regions[near], contact[near]]).tolist()
 
 
 class CostTracer:
@@ -128,6 +157,9 @@ class CostTracer:
         base = env.unwrapped
         row = self._filtered.pop(id(base), {})
         row["cost"] = float(window.info.get("cost", 0.0))
+        row["cost_terms"] = sorted(key for key, value in window.info.items()
+                                   if key.startswith("cost_") and key != "cost_sum"
+                                   and isinstance(value, float) and value > 0)
         row["t"] = record.step
         row["plan_escape"] = bool(getattr(window.plan, "escape_mode", False))
         row["plan_fallback"] = bool(getattr(window.plan, "fallback", False))
@@ -153,45 +185,29 @@ def recording(tracer: CostTracer) -> Iterator[CostTracer]:
         SafetyShield.recorder, SafetyEmbeddedEnv.recorder = saved
 
 
-def replay_config(cfg: DictConfig, out_dir: Path) -> DictConfig:
-    """The run's config to resume ``out_dir`` for one more epoch, without the final evaluation,
-    the post-training hook and TensorBoard."""
-    cfg = copy.deepcopy(cfg)
-    with open_dict(cfg):
-        cfg.total_steps = int(cfg.total_steps) + int(cfg.algo.steps_per_epoch)
-        cfg.final_eval_episodes = 0
-        cfg.env.post_train = None
-        cfg.tensorboard = False
-        cfg.resume = str(out_dir)
-    return cfg
-
-
-def _resume(cfg: DictConfig, run_dir: Path) -> None:
-    """Continue the run in ``run_dir`` from its checkpoint under ``cfg``: what
-    ``semdp-train resume=<run_dir>`` does (semdp/cli/train.py), without writing the final
-    metrics."""
+def _replay_one_epoch(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
+    """Train one epoch from ``run_dir``'s checkpoint under its config ``cfg``, as the run did
+    after that checkpoint (its learning-rate schedules see the run's ``total_steps``); nothing
+    is written. Returns the epoch's training statistics."""
     validate_config(cfg)
     torch.set_num_threads(int(cfg.get("torch_threads", 1)))
     algo = build_algorithm(cfg)
     algo.load_checkpoint(run_dir / "checkpoints" / CHECKPOINT_NAME)
-    meta = {"algo": str(cfg.get("algo_name")), "env": str(cfg.get("env_name")),
-            "seed": int(cfg.seed)}
-    if cfg.get("label"):
-        meta["label"] = str(cfg.label)
-    with progress_logging(cfg, algo):
-        algo.learn(
-            total_steps=int(cfg.total_steps), run_dir=run_dir, eval_every=int(cfg.eval_every),
-            eval_episodes=int(cfg.eval_episodes),
-            final_eval_episodes=int(cfg.final_eval_episodes),
-            checkpoint_every=int(cfg.checkpoint_every), resume=True, metadata=meta,
-            eval_workers=int(cfg.get("eval_workers", 1)),
-        )
+    algo.total_epochs = math.ceil(int(cfg.total_steps) / algo.steps_per_epoch)
+    if algo.epoch >= algo.total_epochs:
+        raise EvalError(f"{run_dir}: the checkpoint is the run's last epoch; nothing to replay")
+    try:
+        stats = algo.train_epoch()
+    finally:
+        algo.close_helpers()
+    return {"epoch": algo.epoch, **{k: float(v) for k, v in stats.items()
+                                     if isinstance(v, (int, float))}}
 
 
 def replay_epoch(run_dir: str | Path, out_dir: str | Path,
-                 steps: int = DEFAULT_STEPS) -> list[dict[str, Any]]:
-    """Replay the next epoch of ``run_dir`` in a copy at ``out_dir`` with a :class:`CostTracer`;
-    write and return its entries (module docstring).
+                 steps: int = DEFAULT_STEPS) -> tuple[list[dict[str, Any]], dict[str, float]]:
+    """Replay the epoch after ``run_dir``'s checkpoint with a :class:`CostTracer`; write the
+    entries (module docstring) to ``out_dir`` and return them with the epoch's statistics.
 
     Raises:
         EvalError: ``run_dir`` lacks its config or checkpoint, or ``out_dir`` exists.
@@ -201,15 +217,14 @@ def replay_epoch(run_dir: str | Path, out_dir: str | Path,
             and (run_dir / "checkpoints" / CHECKPOINT_NAME).is_file()):
         raise EvalError(f"{run_dir}: needs config.yaml and checkpoints/{CHECKPOINT_NAME}")
     if out_dir.exists():
-        raise EvalError(f"{out_dir} exists; give a new directory for the replay")
+        raise EvalError(f"{out_dir} exists; give a new directory for the trace")
     tracer = CostTracer(steps)
-    shutil.copytree(run_dir, out_dir)
-    cfg = replay_config(load_run_config(out_dir), out_dir)
-    OmegaConf.save(cfg, out_dir / "config.yaml")
-    with recording(tracer):  # the saved config, as semdp-train resume=<out_dir> reads it
-        _resume(load_run_config(out_dir), out_dir)
+    cfg = load_run_config(run_dir)
+    with recording(tracer):
+        stats = _replay_one_epoch(cfg, run_dir)
+    out_dir.mkdir(parents=True)
     (out_dir / TRACE_NAME).write_text(json.dumps(tracer.dumps, indent=1, default=float))
-    return tracer.dumps
+    return tracer.dumps, stats
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -222,9 +237,10 @@ def main(argv: list[str] | None = None) -> None:
                         help="steps kept per env up to its first cost step")
     args = parser.parse_args(argv)
     try:
-        dumps = replay_epoch(args.run_dir, args.out_dir, args.steps)
+        dumps, stats = replay_epoch(args.run_dir, args.out_dir, args.steps)
     except EvalError as exc:
         raise SystemExit(f"cost_trace: {exc}") from None
+    print("replayed " + " ".join(f"{key} {value:.6g}" for key, value in stats.items()))
     print(f"{args.out_dir / TRACE_NAME}: {len(dumps)} env(s) with a cost step")
 
 
