@@ -251,8 +251,8 @@ def test_outline_distance_at_hand_computed_points() -> None:
 def _mass_pressing_inside_orbits(seed: int, home_y: float, shield: SafetyShield) -> tuple:
     """(wrong-button cost steps, gremlin cost steps, presses) of a Mass started against the goal
     button (0.25 m from button 0, pushed on into it at full speed for 120 steps) between two
-    gremlins whose homes are 0.65-0.75 m away (their orbits clear of the robot's contact with
-    the button, their LiDAR orbit discs around it)."""
+    gremlins whose homes are ``home_y`` from the button's axis (their LiDAR orbit discs around
+    the robot)."""
     env, _ = _button_env("mass", seed, shield, gremlins=[(0.6, home_y), (0.6, -home_y)],
                          agent=(0.75, 0.0))
     assert env.unwrapped.goal_button == 0
@@ -263,19 +263,77 @@ def _mass_pressing_inside_orbits(seed: int, home_y: float, shield: SafetyShield)
     return tuple(costs)
 
 
-@pytest.mark.parametrize(("seed", "home_y"), [(7, 0.6), (6, 0.65)])
-def test_a_mass_inside_orbit_discs_leaves_the_button_it_pressed(seed: int,
-                                                               home_y: float) -> None:
+@pytest.mark.parametrize("seed", [6, 7, 10])
+def test_a_mass_inside_orbit_discs_leaves_the_button_it_pressed(seed: int) -> None:
     """The exit from a just-pressed button ranks the button's region before the orbit discs the
     robot is also in. Under the rule that took the smallest gap over all of them, the discs
-    (which the robot cannot leave within the grace period) chose the escapes, which alternated
-    between directions on the button: 104 and 1 wrong-button cost steps here (checked with that
-    rule patched in), as on a trained MassButton1 run (1.9 cost per episode in its epoch 5,
-    0 when that epoch is replayed under this rule; outputs/reference/semdp_button1)."""
+    (which the robot cannot leave within the grace period) chose the escapes: 1 wrong-button cost
+    step in each of these episodes (checked with that rule patched in; 104 with the gremlins
+    0.05 m closer), as on a trained MassButton1 run whose escapes alternated on the button it
+    had pressed (1.9 cost per training episode in its epoch 5, 0 when that epoch is replayed
+    under this rule; outputs/reference/semdp_button1)."""
     shield = SafetyShield(perception="lidar")
-    buttons, gremlins, presses = _mass_pressing_inside_orbits(seed, home_y, shield)
+    buttons, gremlins, presses = _mass_pressing_inside_orbits(seed, 0.65, shield)
     assert presses >= 1 and shield.stats.escaped > 0
     assert buttons == 0.0 and gremlins == 0.0
+
+
+@pytest.mark.parametrize("command", [[-1.0, 0.0], [0.0, 0.0]])
+def test_a_point_between_two_buttons_leaves_the_one_it_pressed(command: list[float]) -> None:
+    """A Point pressing the goal button (1, 0) with its back, facing a wrong button 0.6 m away
+    whose LiDAR region its way out enters by a few centimetres (within the margin, short of the
+    button), commanded back into the pressed button or to stand still: no wrong-button cost.
+    With entries not allowed up to the margin the robot could leave neither and stayed on the
+    pressed button after its grace period: 2-3 cost steps (checked with the earlier rules
+    patched in), as a trained PointButton1 run's epoch-8 episode did."""
+    env = gym.make("sims/SafetyPointButton1-v0")
+    shield = SafetyShield(perception="lidar")
+    env = ShieldedEnv(env, shield)
+    layout = {"agent": (1.0, -0.18), "agent_yaw": -math.pi / 2,
+              "buttons": [(1.0, 0.0), (-1.5, 1.5), (1.3, 1.6), (1.0, -0.6)],
+              "gremlins": [], "hazards": []}
+    env.reset(seed=SEED_GOAL_AHEAD, options={"layout": layout})
+    assert env.unwrapped.goal_button == 0
+    cost = presses = 0.0
+    for _ in range(80):
+        _, _, _, _, info = env.step(np.array(command))
+        cost += info["cost_buttons"]
+        presses += info["goal_met"]
+    assert presses >= 1 and shield.stats.escaped > 0
+    assert cost == 0.0
+
+
+def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
+    """A Point sliding west at 0.5 m/s inside an orbit disc (centre 0.3 m east), a hazard's
+    region 0.03 m ahead: every option's hold enters it by more than the margin. The exit takes
+    an option that enters least (the earlier rule ranked all options by the disc alone and took
+    full thrust west, 0.1 m deeper into the hazard's region), computed here by hand with the
+    model."""
+    from semdp.embedded.robot_models import RobotState, robot_model
+    from semdp.embedded.shield import EXIT_STEPS
+
+    model = robot_model("point")
+    state = RobotState(0.0, 0.0, -0.5, 0.0, math.pi, 0.0)
+    regions = np.array([[0.3, 0.0, 0.5], [-0.45, 0.0, 0.48]])
+    contact, orbit = np.array([True, False]), np.array([True, False])
+    outside = np.array([False, True])
+    options = [model.backup(state), *model.escapes]
+    entries, depths = [], []
+    for action in options:
+        s, points = state, []
+        for _ in range(EXIT_STEPS):
+            s = model.step(s, action)
+            points.append((s.x, s.y))
+        gaps = np.linalg.norm(np.array(points)[:, None] - regions[None, :, :2], axis=-1)
+        gaps -= regions[:, 2]
+        entries.append(gaps[:, 1].min())
+        depths.append(gaps[:, 0].max())
+    entries_arr = np.array(entries)
+    shield = SafetyShield(margin=0.05, perception="gt")
+    assert (entries_arr < -shield.margin).all()
+    choice = shield._exit(model, state, options, regions, contact, orbit, outside)
+    assert entries[choice] == entries_arr.max()
+    assert entries_arr[int(np.argmax(depths))] < entries_arr.max() - 0.09  # what depth chose
 
 
 # ------------------------------------------------------------------ regressions from the bench

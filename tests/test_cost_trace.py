@@ -21,7 +21,7 @@ from semdp.embedded.robot_models import RobotState, robot_model
 from semdp.embedded.shield import SafetyShield
 from semdp.embedded.straight import StraightLinePlanner
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
-from semdp.evaluation.cost_trace import TRACE_NAME, CostTracer, recording, replay_epoch
+from semdp.evaluation.cost_trace import TRACE_NAME, CostTracer, recording, replay_epochss
 from semdp.evaluation.errors import EvalError
 
 HAZARD = (0.4, 0.0)
@@ -162,7 +162,7 @@ def test_the_replay_trains_exactly_the_next_epoch_and_writes_nothing_to_the_run(
     config.total_steps = 1600
     OmegaConf.save(config, short / "config.yaml")
     before = sorted((p.name, p.stat().st_mtime_ns) for p in short.rglob("*"))
-    dumps, stats = replay_epoch(short, tmp_path / "trace")
+    dumps, (stats,) = replay_epochs(short, tmp_path / "trace")
     assert sorted((p.name, p.stat().st_mtime_ns) for p in short.rglob("*")) == before
     assert json.loads((tmp_path / "trace" / TRACE_NAME).read_text()) == dumps
     with open(full / "progress.csv", newline="") as f:
@@ -171,6 +171,8 @@ def test_the_replay_trains_exactly_the_next_epoch_and_writes_nothing_to_the_run(
     for key in ("ep_return", "ep_cost", "loss_q", "loss_pi", "alpha", "entropy"):
         assert stats[key] == pytest.approx(float(row[key]), rel=1e-12, abs=1e-12), key
     with pytest.raises(EvalError, match="nothing to replay"):
-        replay_epoch(full, tmp_path / "trace_full")
+        replay_epochs(full, tmp_path / "trace_full")
     with pytest.raises(EvalError, match="exists"):
-        replay_epoch(short, tmp_path / "trace")
+        replay_epochs(short, tmp_path / "trace")
+    with pytest.raises(EvalError, match="nothing to replay for 2"):
+        replay_epochs(short, tmp_path / "trace_two", epochs=2)

@@ -48,13 +48,14 @@ outputs/reference/safety/COMMAND.md), so the default stays ``"escape"``.
 button it just pressed, which is a wrong button once the goal moves; a push that left it near a
 pillar) one step then braking barely moves a robot at rest, so the escape cannot tell a way out
 from a turn on the spot. There the escape holds each option for :data:`EXIT_STEPS` steps and
-takes the one that soonest stays out of the static regions it can leave (a button, not a
-gremlin's orbit disc, which it may be deep inside), then the one that gets farthest out, with
-gaps measured from the robot's outline at its predicted heading rather than from a disc of its
-extent (:meth:`SafetyShield._exit`): with goal-seeking subgoals the Point's nose, swinging back
-into the button as the robot turned away, touched it after the grace period in 1 of 60
-episodes on Button1 before the hold and the outline, and a trained Mass inside two orbit discs
-stayed on the button it had pressed before the static regions came first.
+takes the one that gets farthest out of the static regions it is in (a button, not a gremlin's
+orbit disc, which it may be deep inside), then out of all, with gaps measured from the robot's
+outline at its predicted heading rather than from a disc of its extent, among the options that
+enter no other region by more than the margin, else those that enter least
+(:meth:`SafetyShield._exit`, with the trained runs' episodes that led to each part): with
+goal-seeking subgoals the Point's nose, swinging back into the button as the robot turned away,
+touched it after the grace period in 1 of 60 episodes on Button1 before the hold and the
+outline.
 
 A :attr:`SafetyShield.recorder`, when set, is given a :class:`FilterRecord` of every
 :meth:`SafetyShield.filter` call (the robot state it read, the proposed and applied actions,
@@ -347,28 +348,34 @@ class SafetyShield:
                 if self._clearance(model, state, a, regions[outside]) >= 0.0]
         return max(kept, key=scores.__getitem__) if kept and best not in kept else best
 
-    @staticmethod
-    def _exit(model: RobotModel, state: RobotState, options: list[np.ndarray],
+    def _exit(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
               regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray,
               outside: np.ndarray) -> int:
         """Inside a region (a button just pressed, an orbit disc, a LiDAR region lit around the
-        robot): the option that, held for :data:`EXIT_STEPS` steps, leaves the most of the
-        static regions it is in that it can leave (every kind but a gremlin's orbit disc) and
-        stays out of them, soonest; ties go to the option that gets farthest out of all the
-        regions it is in. Only options whose hold enters no region the robot is outside of
-        count, if there are any.
+        robot): the option that, held for :data:`EXIT_STEPS` steps, gets farthest out of the
+        static regions it is in (every kind but a gremlin's orbit disc), then farthest out of
+        all the regions it is in, at the best step of its hold; among the options whose hold
+        enters no region the robot is outside of by more than :attr:`margin` if there are any,
+        else among those that enter least.
 
-        A static region it is in is a cost at hand (a button whose grace period is running
-        out); an orbit disc it is in is a cost only if the gremlin comes round. A score that
-        mixed the two let a disc the robot was deep inside choose: on a trained MassButton1 run
-        the escapes alternated between opposite directions on a just-pressed button until its
-        grace period ended. Ranking by the step from which the robot stays out also makes the
-        choice consistent from step to step (the model's own exit, one step on, is one step
-        sooner). A contact region's gap is measured from the robot's outline at its predicted
-        heading (:class:`~semdp.embedded.robot_models.Outline`), not from a disc of its extent:
-        a robot at rest moves a few centimetres in the grace period after a press, and whether
-        it touches the button again depends on where its nose (the Point) or its wheels (the
-        Car) swing, which a disc cannot tell."""
+        * Static regions first: a static region the robot is in is a cost at hand (a button
+          whose grace period is running out); an orbit disc it is in is a cost only if the
+          gremlin comes round. Ranked together, a disc the robot was deep inside chose: on a
+          trained MassButton1 run the escapes alternated between opposite directions on a
+          just-pressed button until its grace period ended.
+        * Entries up to the margin: the margin is clearance beyond the object's cost radius,
+          so entering a region by less does not reach the object. Without it a Point that had
+          pressed a button 0.58 m from another could leave neither (the way out of the one
+          entered the other's region by 2 cm) and stayed until the grace period ended.
+        * The least entry when every option enters: a Point escaping an orbit disc with
+          momentum towards a hazard, every option's hold entering the hazard's region, was
+          otherwise ranked by the disc alone and slid into the hazard.
+
+        A contact region's gap is measured from the robot's outline at its predicted heading
+        (:class:`~semdp.embedded.robot_models.Outline`), not from a disc of its extent: a robot
+        at rest moves a few centimetres in the grace period after a press, and whether it
+        touches the button again depends on where its nose (the Point) or its wheels (the Car)
+        swing, which a disc cannot tell."""
         poses = np.empty((len(options), EXIT_STEPS, 3))
         for i, a in enumerate(options):
             s = state
@@ -384,17 +391,15 @@ class SafetyShield:
                 regions[exiting, 2] - model.extent)
         gaps = gaps.reshape(len(options), EXIT_STEPS, -1)
         depth = gaps[:, :, ~outside].min(axis=2).max(axis=1)
-        static = gaps[:, :, ~outside & ~orbit]
-        # per option and static region: the first step from which the hold stays out
-        stays_out = np.flip(np.logical_and.accumulate(np.flip(static >= 0.0, axis=1), axis=1),
-                            axis=1)
-        left = stays_out.any(axis=1)  # (options, regions)
-        count = left.sum(axis=1)
-        when = np.where(left, stays_out.argmax(axis=1), 0).max(axis=1, initial=0)
+        static = ~outside & ~orbit
+        static_depth = (gaps[:, :, static].min(axis=2).max(axis=1) if static.any()
+                        else np.zeros(len(options)))
         entries = (gaps[:, :, outside].min(axis=(1, 2)) if outside.any()
                    else np.zeros(len(options)))
-        kept = [i for i in range(len(options)) if entries[i] >= 0.0] or list(range(len(options)))
-        return min(kept, key=lambda i: (-count[i], when[i], -depth[i]))
+        kept = [i for i in range(len(options)) if entries[i] >= -self.margin]
+        if not kept:
+            kept = [i for i in range(len(options)) if entries[i] == entries.max()]
+        return max(kept, key=lambda i: (static_depth[i], depth[i]))
 
 
 class ShieldedEnv(gym.Wrapper):

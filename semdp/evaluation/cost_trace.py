@@ -2,17 +2,17 @@
 filter call and low-level step recorded (thesis §3.5.1-3.5.2, Alg. 2; the investigation of the
 one training episode with cost in outputs/reference/semdp_converged/COMMAND.md).
 
-    python -m semdp.evaluation.cost_trace <run dir> <out dir> [--steps 60]
+    python -m semdp.evaluation.cost_trace <run dir> <out dir> [--steps 60] [--epochs 1]
 
 Loads ``<run dir>``'s checkpoint (``config.yaml`` and ``checkpoints/last.pt``; the run itself is
-not touched) and trains exactly one more epoch from it, as the run did after that checkpoint
+not touched) and trains ``--epochs`` more epochs from it, as the run did after that checkpoint
 (no evaluation, no checkpoint, no progress row), while a :class:`CostTracer` records every
 :class:`~semdp.embedded.shield.SafetyShield` call and every low-level step of the
 :class:`~semdp.embedded.wrapper.SafetyEmbeddedEnv` envs in this process. It writes
 ``<out dir>/cost_trace.json``: a list with one entry per env that incurred cost in the epoch,
 ``{"env": id, "hazards": [[x, y, r], ...], "steps": [...]}``, its last ``--steps`` low-level
-steps up to and including its first cost step, and prints the epoch's training statistics (to
-compare with the run's ``progress.csv`` row of that epoch: a replay is exact). A step's fields:
+steps up to and including its first cost step, and prints each epoch's training statistics
+(to compare with the run's ``progress.csv`` rows: a replay is exact). A step's fields:
 
 * from the filter (absent for an env without one), all before the step: ``pos``, ``vel``,
   ``yaw``, ``w`` (the robot state the filter read), ``proposed`` and ``applied`` (the
@@ -185,33 +185,41 @@ def recording(tracer: CostTracer) -> Iterator[CostTracer]:
         SafetyShield.recorder, SafetyEmbeddedEnv.recorder = saved
 
 
-def _replay_one_epoch(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
-    """Train one epoch from ``run_dir``'s checkpoint under its config ``cfg``, as the run did
-    after that checkpoint (its learning-rate schedules see the run's ``total_steps``); nothing
-    is written. Returns the epoch's training statistics."""
+def _replay_epochs(cfg: DictConfig, run_dir: Path, epochs: int) -> list[dict[str, float]]:
+    """Train ``epochs`` epochs from ``run_dir``'s checkpoint under its config ``cfg``, as the
+    run did after that checkpoint (its learning-rate schedules see the run's ``total_steps``);
+    nothing is written. Returns each epoch's training statistics."""
     validate_config(cfg)
     torch.set_num_threads(int(cfg.get("torch_threads", 1)))
     algo = build_algorithm(cfg)
     algo.load_checkpoint(run_dir / "checkpoints" / CHECKPOINT_NAME)
     algo.total_epochs = math.ceil(int(cfg.total_steps) / algo.steps_per_epoch)
-    if algo.epoch >= algo.total_epochs:
-        raise EvalError(f"{run_dir}: the checkpoint is the run's last epoch; nothing to replay")
+    if algo.epoch + epochs > algo.total_epochs:
+        raise EvalError(f"{run_dir}: the checkpoint is at epoch {algo.epoch} of "
+                        f"{algo.total_epochs}; nothing to replay for {epochs} epoch(s)")
+    out = []
     try:
-        stats = algo.train_epoch()
+        for _ in range(epochs):
+            stats = algo.train_epoch()
+            out.append({"epoch": algo.epoch, **{k: float(v) for k, v in stats.items()
+                                                if isinstance(v, (int, float))}})
     finally:
         algo.close_helpers()
-    return {"epoch": algo.epoch, **{k: float(v) for k, v in stats.items()
-                                     if isinstance(v, (int, float))}}
+    return out
 
 
-def replay_epoch(run_dir: str | Path, out_dir: str | Path,
-                 steps: int = DEFAULT_STEPS) -> tuple[list[dict[str, Any]], dict[str, float]]:
-    """Replay the epoch after ``run_dir``'s checkpoint with a :class:`CostTracer`; write the
-    entries (module docstring) to ``out_dir`` and return them with the epoch's statistics.
+def replay_epochs(run_dir: str | Path, out_dir: str | Path, steps: int = DEFAULT_STEPS,
+                  epochs: int = 1) -> tuple[list[dict[str, Any]], list[dict[str, float]]]:
+    """Replay the ``epochs`` epochs after ``run_dir``'s checkpoint with a :class:`CostTracer`;
+    write the entries (module docstring) to ``out_dir`` and return them with each epoch's
+    statistics.
 
     Raises:
-        EvalError: ``run_dir`` lacks its config or checkpoint, or ``out_dir`` exists.
+        EvalError: ``run_dir`` lacks its config or checkpoint, ``out_dir`` exists, or the run
+            has fewer epochs left.
     """
+    if epochs < 1:
+        raise EvalError(f"epochs must be >= 1, got {epochs}")
     run_dir, out_dir = Path(run_dir), Path(out_dir)
     if not ((run_dir / "config.yaml").is_file()
             and (run_dir / "checkpoints" / CHECKPOINT_NAME).is_file()):
@@ -221,7 +229,7 @@ def replay_epoch(run_dir: str | Path, out_dir: str | Path,
     tracer = CostTracer(steps)
     cfg = load_run_config(run_dir)
     with recording(tracer):
-        stats = _replay_one_epoch(cfg, run_dir)
+        stats = _replay_epochs(cfg, run_dir, epochs)
     out_dir.mkdir(parents=True)
     (out_dir / TRACE_NAME).write_text(json.dumps(tracer.dumps, indent=1, default=float))
     return tracer.dumps, stats
@@ -235,12 +243,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("out_dir", type=Path, help="a new directory for the replayed copy")
     parser.add_argument("--steps", type=int, default=DEFAULT_STEPS,
                         help="steps kept per env up to its first cost step")
+    parser.add_argument("--epochs", type=int, default=1, help="epochs replayed")
     args = parser.parse_args(argv)
     try:
-        dumps, stats = replay_epoch(args.run_dir, args.out_dir, args.steps)
+        dumps, stats = replay_epochs(args.run_dir, args.out_dir, args.steps, args.epochs)
     except EvalError as exc:
         raise SystemExit(f"cost_trace: {exc}") from None
-    print("replayed " + " ".join(f"{key} {value:.6g}" for key, value in stats.items()))
+    for row in stats:
+        print("replayed " + " ".join(f"{key} {value:.6g}" for key, value in row.items()))
     print(f"{args.out_dir / TRACE_NAME}: {len(dumps)} env(s) with a cost step")
 
 
