@@ -355,18 +355,22 @@ class SafetyShield:
         robot): the option that, held for :data:`EXIT_STEPS` steps, gets farthest out of the
         static regions it is in (every kind but a gremlin's orbit disc), then farthest out of
         all the regions it is in, at the best step of its hold; among the options whose hold
-        enters no region the robot is outside of by more than :attr:`margin` if there are any,
-        else among those that enter least.
+        enters no region the robot is outside of (by more than :attr:`margin` when it is that
+        deep in a static region) if there are any, else among those that enter least.
 
         * Static regions first: a static region the robot is in is a cost at hand (a button
           whose grace period is running out); an orbit disc it is in is a cost only if the
           gremlin comes round. Ranked together, a disc the robot was deep inside chose: on a
           trained MassButton1 run the escapes alternated between opposite directions on a
           just-pressed button until its grace period ended.
-        * Entries up to the margin: the margin is clearance beyond the object's cost radius,
-          so entering a region by less does not reach the object. Without it a Point that had
-          pressed a button 0.58 m from another could leave neither (the way out of the one
-          entered the other's region by 2 cm) and stayed until the grace period ended.
+        * Entries up to the margin when the robot is deeper than the margin in a static region
+          (touching a button it pressed, by its perception): the margin is clearance beyond
+          the object's cost radius, so entering another region by less does not reach that
+          object. Without it a Point that had pressed a button 0.58 m from another could leave
+          neither (the way out of the one entered the other's region by 2 cm) and stayed until
+          the grace period ended. Only then: allowed always, a Point inside a hazard's region
+          (not the hazard) crept into a wrong button's, and wedged between the two, slid into
+          the hazard.
         * The least entry when every option enters: a Point escaping an orbit disc with
           momentum towards a hazard, every option's hold entering the hazard's region, was
           otherwise ranked by the disc alone and slid into the hazard.
@@ -396,10 +400,28 @@ class SafetyShield:
                         else np.zeros(len(options)))
         entries = (gaps[:, :, outside].min(axis=(1, 2)) if outside.any()
                    else np.zeros(len(options)))
-        kept = [i for i in range(len(options)) if entries[i] >= -self.margin]
+        tolerance = self.margin if self._static_depth_now(model, state, regions, contact,
+                                                          static) < -self.margin else 0.0
+        kept = [i for i in range(len(options)) if entries[i] >= -tolerance]
         if not kept:
             kept = [i for i in range(len(options)) if entries[i] == entries.max()]
         return max(kept, key=lambda i: (static_depth[i], depth[i]))
+
+    @staticmethod
+    def _static_depth_now(model: RobotModel, state: RobotState, regions: np.ndarray,
+                          contact: np.ndarray, static: np.ndarray) -> float:
+        """The robot's gap out of the static regions it is in, where it is now (contact
+        regions from its outline, as in :meth:`_exit`); ``inf`` if it is in none."""
+        if not static.any():
+            return math.inf
+        rows = regions[static]
+        gaps = np.hypot(rows[:, 0] - state.x, rows[:, 1] - state.y) - rows[:, 2]
+        touching = contact[static]
+        if touching.any():
+            gaps[touching] = model.outline.distance(state.x, state.y, state.yaw,
+                                                    rows[touching, :2]) - (
+                rows[touching, 2] - model.extent)
+        return float(gaps.min())
 
 
 class ShieldedEnv(gym.Wrapper):
