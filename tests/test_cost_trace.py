@@ -21,7 +21,7 @@ from semdp.embedded.robot_models import RobotState, robot_model
 from semdp.embedded.shield import SafetyShield
 from semdp.embedded.straight import StraightLinePlanner
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
-from semdp.evaluation.cost_trace import TRACE_NAME, CostTracer, recording, replay_epochss
+from semdp.evaluation.cost_trace import TRACE_NAME, CostTracer, recording, replay_epochs
 from semdp.evaluation.errors import EvalError
 
 HAZARD = (0.4, 0.0)
