@@ -336,6 +336,40 @@ def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
     assert entries_arr[int(np.argmax(depths))] < entries_arr.max() - 0.09  # what depth chose
 
 
+def test_a_robot_barely_inside_a_region_does_not_creep_into_another() -> None:
+    """A Point at rest 0.02 m inside a hazard's region (not in the hazard: the margin is 0.05
+    m), a wrong button's region 0.03 m ahead: thrust would get it out of the hazard's region
+    by entering the button's by 0.02 m, within the margin. The exit allows such entries only
+    to a robot deeper than the margin in a static region, so it stays out of the button's
+    region; allowed always, the robot crept from region to region and, wedged between a
+    hazard and a button, slid into the hazard (a trained PointButton1 run's first epoch)."""
+    from semdp.embedded.robot_models import RobotState, robot_model
+    from semdp.embedded.shield import EXIT_STEPS
+
+    model = robot_model("point")
+    state = RobotState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    regions = np.array([[-0.25, 0.0, 0.27], [0.48, 0.0, 0.45]])
+    contact, orbit = np.array([False, True]), np.array([False, False])
+    outside = np.array([False, True])
+    options = [model.backup(state), *model.escapes]
+    entries, depths = [], []
+    for action in options:
+        s, points = state, []
+        for _ in range(EXIT_STEPS):
+            s = model.step(s, action)
+            points.append((s.x, s.y))
+        gaps = np.linalg.norm(np.array(points)[:, None] - regions[None, :, :2], axis=-1)
+        gaps -= regions[:, 2]
+        entries.append(gaps[:, 1].min())
+        depths.append(gaps[:, 0].max())
+    shield = SafetyShield(margin=0.05, perception="gt")
+    creeping = [i for i, e in enumerate(entries) if -shield.margin <= e < 0.0]
+    assert creeping and max(depths[i] for i in creeping) > max(
+        d for d, e in zip(depths, entries, strict=True) if e >= 0.0)  # what creeping gains
+    choice = shield._exit(model, state, options, regions, contact, orbit, outside)
+    assert entries[choice] >= 0.0
+
+
 # ------------------------------------------------------------------ regressions from the bench
 @pytest.mark.parametrize(("robot", "task", "policy", "seed", "config"), [
     ("point", "Button1", "adversarial", 9209, "eval"),
