@@ -303,6 +303,26 @@ def test_a_point_between_two_buttons_leaves_the_one_it_pressed(command: list[flo
     assert cost == 0.0
 
 
+def _holds_by_hand(model: object, state: object, options: list[np.ndarray],
+                   regions: np.ndarray) -> tuple[list[float], list[float]]:
+    """Each option held for the exit's steps from ``state`` by the robot model, disc gaps to
+    ``regions`` rows ``[x, y, R]``: (the smallest gap to row 1 over the hold: its entry, the
+    largest gap to row 0: how far out of it the hold gets)."""
+    from semdp.embedded.shield import EXIT_STEPS
+
+    entries, depths = [], []
+    for action in options:
+        s, points = state, []
+        for _ in range(EXIT_STEPS):
+            s = model.step(s, action)  # type: ignore[attr-defined]
+            points.append((s.x, s.y))
+        gaps = np.linalg.norm(np.array(points)[:, None] - regions[None, :, :2], axis=-1)
+        gaps -= regions[:, 2]
+        entries.append(float(gaps[:, 1].min()))
+        depths.append(float(gaps[:, 0].max()))
+    return entries, depths
+
+
 def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
     """A Point sliding west at 0.5 m/s inside an orbit disc (centre 0.3 m east), a hazard's
     region 0.03 m ahead: every option's hold enters it by more than the margin. The exit takes
@@ -310,7 +330,6 @@ def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
     full thrust west, 0.1 m deeper into the hazard's region), computed here by hand with the
     model."""
     from semdp.embedded.robot_models import RobotState, robot_model
-    from semdp.embedded.shield import EXIT_STEPS
 
     model = robot_model("point")
     state = RobotState(0.0, 0.0, -0.5, 0.0, math.pi, 0.0)
@@ -318,16 +337,7 @@ def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
     contact, orbit = np.array([True, False]), np.array([True, False])
     outside = np.array([False, True])
     options = [model.backup(state), *model.escapes]
-    entries, depths = [], []
-    for action in options:
-        s, points = state, []
-        for _ in range(EXIT_STEPS):
-            s = model.step(s, action)
-            points.append((s.x, s.y))
-        gaps = np.linalg.norm(np.array(points)[:, None] - regions[None, :, :2], axis=-1)
-        gaps -= regions[:, 2]
-        entries.append(gaps[:, 1].min())
-        depths.append(gaps[:, 0].max())
+    entries, depths = _holds_by_hand(model, state, options, regions)
     entries_arr = np.array(entries)
     shield = SafetyShield(margin=0.05, perception="gt")
     assert (entries_arr < -shield.margin).all()
@@ -344,7 +354,6 @@ def test_a_robot_barely_inside_a_region_does_not_creep_into_another() -> None:
     region; allowed always, the robot crept from region to region and, wedged between a
     hazard and a button, slid into the hazard (a trained PointButton1 run's first epoch)."""
     from semdp.embedded.robot_models import RobotState, robot_model
-    from semdp.embedded.shield import EXIT_STEPS
 
     model = robot_model("point")
     state = RobotState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -352,16 +361,7 @@ def test_a_robot_barely_inside_a_region_does_not_creep_into_another() -> None:
     contact, orbit = np.array([False, True]), np.array([False, False])
     outside = np.array([False, True])
     options = [model.backup(state), *model.escapes]
-    entries, depths = [], []
-    for action in options:
-        s, points = state, []
-        for _ in range(EXIT_STEPS):
-            s = model.step(s, action)
-            points.append((s.x, s.y))
-        gaps = np.linalg.norm(np.array(points)[:, None] - regions[None, :, :2], axis=-1)
-        gaps -= regions[:, 2]
-        entries.append(gaps[:, 1].min())
-        depths.append(gaps[:, 0].max())
+    entries, depths = _holds_by_hand(model, state, options, regions)
     shield = SafetyShield(margin=0.05, perception="gt")
     creeping = [i for i, e in enumerate(entries) if -shield.margin <= e < 0.0]
     assert creeping and max(depths[i] for i in creeping) > max(
