@@ -11,13 +11,35 @@ Each also names a *backup* action that brings the robot to rest and a few *escap
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import pymunk
 
 from sims.safety_gym.robots import CarRobot, MassRobot, PointRobot, Robot, interp_clamped
+
+
+@dataclass(frozen=True)
+class Ops:
+    """The arithmetic a braking manoeuvre is written in (:meth:`PointModel.brake_points`):
+    ``math`` on floats for the filter's plain path, CasADi's on symbols for its compiled
+    kernel (:mod:`semdp.embedded.brake_kernel`). The same expressions in the same order, so
+    both give the same numbers."""
+
+    cos: Callable[[Any], Any]
+    sin: Callable[[Any], Any]
+    #: ``clip(v, lo, hi)``: ``min(max(v, lo), hi)``.
+    clip: Callable[[Any, float, float], Any]
+    #: A model constant in a product with other constants (the float itself; a parameter
+    #: symbol in CasADi, which would otherwise multiply the constants out first, in another
+    #: rounding).
+    const: Callable[[float], Any]
+
+
+#: :class:`Ops` on Python floats.
+FLOAT_OPS = Ops(math.cos, math.sin, lambda v, lo, hi: min(max(v, lo), hi), lambda v: v)
 
 
 @dataclass
@@ -157,25 +179,29 @@ class PointModel:
         return np.array([min(max(-0.2 * forward, -1.0), 1.0), 0.0])
 
     def brake_path(self, s: RobotState) -> np.ndarray:
-        out = np.empty((self.horizon, 2))
+        return np.array(list(self.brake_points(s.x, s.y, s.vx, s.vy, s.yaw, s.w, FLOAT_OPS)),
+                        dtype=np.float64).reshape(self.horizon, 2)
+
+    def brake_points(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                     ops: Ops) -> Iterator[tuple[Any, Any]]:
+        """The root positions of :meth:`brake_path`, one per env step, in ``ops``' arithmetic
+        (floats, or CasADi symbols for :mod:`semdp.embedded.brake_kernel`)."""
         h, e = self.h, self.e
         rate = self._brake_rate
-        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
-        for i in range(self.horizon):
-            forward = vx * math.cos(yaw) + vy * math.sin(yaw)
-            a0 = min(max(-0.2 * forward, -1.0), 1.0)
-            gain = self.gear * min(max(a0, -self.force_limit), self.force_limit) * \
+        for _ in range(self.horizon):
+            forward = vx * ops.cos(yaw) + vy * ops.sin(yaw)
+            a0 = ops.clip(-0.2 * forward, -1.0, 1.0)
+            gain = ops.const(self.gear) * ops.clip(a0, -self.force_limit, self.force_limit) * \
                 self.gain_per_force
             for _ in range(self.substeps):
-                c, sn = math.cos(yaw), math.sin(yaw)
+                c, sn = ops.cos(yaw), ops.sin(yaw)
                 x += vx * h
                 y += vy * h
                 yaw += w * h
                 vx = gain * c + vx * e
                 vy = gain * sn + vy * e
                 w = rate
-            out[i, 0], out[i, 1] = x, y
-        return out
+            yield x, y
 
     def stopping_reach(self, s: RobotState) -> float:
         return math.hypot(s.vx, s.vy) * self.tau + 0.05
@@ -219,13 +245,18 @@ class CarModel:
         return math.hypot(s.vx, s.vy) * self.lag * 1.5 + 0.05
 
     def brake_path(self, s: RobotState) -> np.ndarray:
-        out = np.empty((self.horizon, 2))
+        return np.array(list(self.brake_points(s.x, s.y, s.vx, s.vy, s.yaw, s.w, FLOAT_OPS)),
+                        dtype=np.float64).reshape(self.horizon, 2)
+
+    def brake_points(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                     ops: Ops) -> Iterator[tuple[Any, Any]]:
+        """The root positions of :meth:`brake_path`, one per env step, in ``ops``' arithmetic
+        (floats, or CasADi symbols for :mod:`semdp.embedded.brake_kernel`)."""
         speed, rate = self._brake_steady
         h, e, lateral_decay = self.h, self.e, self.lateral_decay
-        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
-        for i in range(self.horizon):
+        for _ in range(self.horizon):
             for _ in range(self.substeps):
-                c, sn = math.cos(yaw), math.sin(yaw)
+                c, sn = ops.cos(yaw), ops.sin(yaw)
                 x += vx * h
                 y += vy * h
                 yaw += w * h
@@ -235,8 +266,7 @@ class CarModel:
                 vx = forward * sn + lateral * c
                 vy = -forward * c + lateral * sn
                 w = w + (rate - w) * (1.0 - e)
-            out[i, 0], out[i, 1] = x, y
-        return out
+            yield x, y
 
 
 class MassModel:

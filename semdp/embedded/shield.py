@@ -72,6 +72,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from semdp.embedded.brake_kernel import compiles, kernel_for
 from semdp.embedded.perception import (
     GREMLIN_ORBIT,
     OBSTACLE_KINDS,
@@ -95,6 +96,10 @@ BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
 
+#: How the certificate is evaluated: ``"compiled"`` (:mod:`semdp.embedded.brake_kernel`, the
+#: same numbers) or ``"python"`` (the plain path).
+KERNELS = ("compiled", "python")
+
 #: Steps an escape from inside a region is held in :meth:`SafetyShield._exit`'s rollouts: the
 #: Button task's grace period after a press (``BUTTON_RESAMPLING_DELAY``), within which the robot
 #: must be off the button it pressed.
@@ -117,11 +122,18 @@ class SafetyShield:
             planner's peak reconstruction as it is.
         fallback: when neither the action nor braking is certified: ``"escape"`` (the best
             one-step clearance among braking and the escape actions) or ``"brake"``.
+        kernel: how :meth:`clearance` is evaluated (:data:`KERNELS`): ``"compiled"`` (the
+            default: the braking manoeuvre as one CasADi function,
+            :mod:`semdp.embedded.brake_kernel`, equal to the plain path bit for bit) or
+            ``"python"`` (the plain path, the reference).
     """
 
     #: Class-level default: filters pickled before ``fallback`` existed (checkpoints hold the
     #: env) resume with the behaviour they had.
     fallback: str = "escape"
+    #: Class-level default: filters pickled before ``kernel`` existed take the compiled one
+    #: (the same numbers).
+    kernel: str = "compiled"
     #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that filters
     #: unpickled from a checkpoint have it too.
@@ -132,7 +144,8 @@ class SafetyShield:
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
-                 lidar_bearing_bound: bool = True, fallback: str = "escape") -> None:
+                 lidar_bearing_bound: bool = True, fallback: str = "escape",
+                 kernel: str = "compiled") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in PERCEPTION_MODES:
@@ -140,6 +153,8 @@ class SafetyShield:
                 f"shield perception must be one of {PERCEPTION_MODES}, got {perception!r}")
         if fallback not in FALLBACKS:
             raise ValueError(f"shield fallback must be one of {FALLBACKS}, got {fallback!r}")
+        if kernel not in KERNELS:
+            raise ValueError(f"shield kernel must be one of {KERNELS}, got {kernel!r}")
         bad = [k for k in kinds if k not in OBSTACLE_KINDS]
         if bad:
             raise ValueError(f"unknown obstacle kinds {bad}; valid: {list(OBSTACLE_KINDS)}")
@@ -148,6 +163,7 @@ class SafetyShield:
         self.kinds = tuple(kinds)
         self.lidar_bearing_bound = bool(lidar_bearing_bound)
         self.fallback = fallback
+        self.kernel = kernel
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
         self._radii: dict[str, float] = {}
@@ -275,8 +291,10 @@ class SafetyShield:
     def _clearance(self, model: RobotModel, state: RobotState, first: np.ndarray,
                    regions: np.ndarray) -> float:
         """Smallest ``distance - R`` over ``first`` then the braking manoeuvre."""
-        points = np.empty((model.horizon + 1, 2))
         s = model.step(state, first)
+        if self.kernel == "compiled" and compiles(model):
+            return kernel_for(model)(s, regions)
+        points = np.empty((model.horizon + 1, 2))
         points[0] = (s.x, s.y)
         points[1:] = model.brake_path(s)
         gaps = np.linalg.norm(points[:, None, :] - regions[None, :, :2], axis=-1)
