@@ -171,3 +171,29 @@ def test_lidar_regions_cover_the_true_hazard_at_any_bearing(distance: float) -> 
     assert _covered_miss(True, distance) <= 1e-9
     miss = _covered_miss(False, distance)
     assert 0.15 * distance < miss <= 0.2 * distance
+
+
+def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_bin() -> None:
+    # oracle: obstacles_from_lidar with every lit bin kept (the shield inlines its arithmetic)
+    from sims.safety_gym.perception import obstacles_from_lidar
+    env = gym.make("sims/SafetyPointGoal1-v0")
+    layout = {"agent": (0.3, -0.2), "agent_yaw": 0.7, "hazards": [(1.0, 0.4), (-0.8, 1.1)],
+              "vases": [(0.2, -1.3)], "goal": (2.0, -2.0)}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    base = env.unwrapped
+    shield = SafetyShield(margin=0.05, perception="lidar", kinds=("hazards", "vases"))
+    shield.bind(base)
+    regions, contact, orbit = shield._regions(base, obs)
+    expected, touches = [], []
+    chord = 2.0 * math.sin(math.pi / 32)  # a half bin's bearing error per metre of range
+    for kind in ("hazards", "vases"):
+        found = obstacles_from_lidar(obs[base.obs_slices[f"{kind}_lidar"]], base.robot_position,
+                                     base.robot_heading, peaks_only=False)
+        ranges = np.linalg.norm(found - np.asarray(base.robot_position), axis=1)
+        grow = np.array([shield._radii[kind] + 0.05 + chord * r for r in ranges])
+        expected.append(np.column_stack([found, grow]))
+        touches += [kind == "vases"] * len(found)
+    expected = np.vstack(expected)
+    assert len(expected) >= 4  # both kinds lit, several bins each
+    np.testing.assert_allclose(regions, expected, rtol=0, atol=1e-12)
+    assert contact.tolist() == touches and not orbit.any()

@@ -86,7 +86,7 @@ from semdp.embedded.perception import (
 )
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
-from sims.safety_gym.perception import BINS, obstacles_from_lidar
+from sims.safety_gym.perception import BINS
 
 #: Safety Gym's LiDAR range (m), as the reconstruction assumes.
 LIDAR_RANGE = 3.0
@@ -107,6 +107,13 @@ EXIT_STEPS = 10
 
 #: Kinds whose cost is a contact with the robot's outline: their regions add the robot's extent.
 _CONTACT_KINDS = ("vases", "pillars", "gremlins", "buttons")
+#: Kinds whose LiDAR frame is more than the current channel: the buttons' (remembered while
+#: blank, less the goal button) and the gremlins' (shifted to the orbit's centre).
+_FRAMED_KINDS = ("buttons", "gremlins")
+#: Readings at or below this are empty bins (``obstacles_from_lidar``'s ``min_reading``).
+_MIN_READING = 1e-6
+#: Each kind's LiDAR observation key.
+_LIDAR_KEYS = {kind: f"{kind}_lidar" for kind in OBSTACLE_KINDS}
 
 class SafetyShield:
     """Model-predictive braking filter on the low-level action (see the module docstring).
@@ -226,14 +233,15 @@ class SafetyShield:
                 orbit.append(np.full(len(found), kind == "gremlins"))
         return _stack(rows, contact, orbit)
 
-    def _lidar_channels(self, base: Any, obs: np.ndarray
+    def _lidar_channels(self, base: Any, obs: np.ndarray, kinds: tuple[str, ...] | None = None
                         ) -> Iterator[tuple[str, float, np.ndarray, LidarFrame]]:
         """``(kind, cost radius + margin, shift, frame)`` of each filtered kind the robot senses
         (buttons: :func:`~semdp.embedded.perception.button_frame`, possibly remembered; the
-        shift and the radius of a gremlin's orbit: :meth:`_orbit`)."""
+        shift and the radius of a gremlin's orbit: :meth:`_orbit`); ``kinds``: only these of
+        the filtered kinds."""
         position = np.asarray(base.robot_position, dtype=np.float64)
         heading = float(base.robot_heading)
-        for kind in self.kinds:
+        for kind in self.kinds if kinds is None else kinds:
             key = f"{kind}_lidar"
             if kind not in self._radii or key not in base.obs_slices:
                 continue
@@ -249,33 +257,70 @@ class SafetyShield:
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every lit bin of each kind's LiDAR, grown by its bearing error bound (and the
-        flags of :meth:`_regions`)."""
-        rows, contact, orbit = [], [], []
+        flags of :meth:`_regions`).
+
+        A lit bin's object sits where :func:`~sims.safety_gym.perception.obstacles_from_lidar`
+        (``peaks_only=False``) puts it, computed here with the same operations but without
+        that function's input checks and arrays per channel: this runs at most low-level
+        steps near an obstacle."""
+        rows: list[tuple[float, float, float]] = []
+        contact: list[bool] = []
+        orbit: list[bool] = []
+        width = 2.0 * math.pi / BINS
         for kind, radius, shift, frame in self._lidar_channels(base, obs):
-            found = obstacles_from_lidar(frame.readings, frame.position, frame.heading,
-                                         max_dist=LIDAR_RANGE, peaks_only=False)
-            if len(found):
-                ranges = np.linalg.norm(found - frame.position, axis=1)
-                rows.append(np.column_stack([found + shift,
-                                             radius + BEARING_ERROR_PER_METRE * ranges]))
-                contact.append(np.full(len(found), kind in _CONTACT_KINDS))
-                orbit.append(np.full(len(found), kind == "gremlins"))
-        return _stack(rows, contact, orbit)
+            px, py = (float(v) for v in frame.position)
+            heading = float(frame.heading)
+            sx, sy = float(shift[0]), float(shift[1])
+            touches, moves = kind in _CONTACT_KINDS, kind == "gremlins"
+            for i, reading in enumerate(np.asarray(frame.readings, dtype=np.float64).tolist()):
+                if reading <= _MIN_READING:
+                    continue
+                dist = (1.0 - reading) * LIDAR_RANGE
+                angle = heading + (i + 0.5) * width
+                x, y = px + dist * math.cos(angle), py + dist * math.sin(angle)
+                dx, dy = x - px, y - py
+                rows.append((x + sx, y + sy,
+                             radius + BEARING_ERROR_PER_METRE * math.sqrt(dx * dx + dy * dy)))
+                contact.append(touches)
+                orbit.append(moves)
+        if not rows:
+            return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
+        return (np.array(rows, dtype=np.float64), np.array(contact, dtype=bool),
+                np.array(orbit, dtype=bool))
 
     def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
         """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
         each kind (exact ranges; the bearing allowance grows with range, hence the factor; a
         gremlin's orbit centre is its shift away); ``-inf`` when a frame was read from
-        elsewhere (remembered)."""
-        bound = np.inf
+        elsewhere (remembered).
+
+        Called before every low-level step: the static kinds read their channel directly
+        (their frame is the current one and their shift zero); buttons and gremlins go through
+        :meth:`_lidar_channels` (the buttons' memory, the orbit)."""
+        bound = math.inf
         shrink = 1.0 - BEARING_ERROR_PER_METRE if self.lidar_bearing_bound else 1.0
+        slices = base.obs_slices
+        moving = []
+        for kind in self.kinds:
+            key = _LIDAR_KEYS[kind]
+            if kind not in self._radii or key not in slices:
+                continue
+            if kind in _FRAMED_KINDS:
+                moving.append(kind)
+                continue
+            reading = float(obs[slices[key]].max())
+            if reading > 0.0:
+                bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE
+                            - (self._radii[kind] + self.margin))
+        if not moving:
+            return bound
         position = np.asarray(base.robot_position, dtype=np.float64)
-        for _, radius, shift, frame in self._lidar_channels(base, obs):
+        for _, radius, shift, frame in self._lidar_channels(base, obs, tuple(moving)):
             reading = float(frame.readings.max())
             if reading <= 0.0:
                 continue
             if not np.array_equal(frame.position, position):
-                return -np.inf
+                return -math.inf
             bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius
                         - float(np.linalg.norm(shift)))
         return bound
