@@ -13,9 +13,14 @@ machine; with the pin below the helper runs agree and every re-run is bit-identi
 
 * ``MKL_CBWR=AVX2`` -- MKL's conditional numerical reproducibility: the AVX2 code path on
   every processor that has it, the same bits whatever the alignment;
-* ``ATEN_CPU_CAPABILITY=avx2`` -- torch's own vectorised kernels at the same level.
+* ``ATEN_CPU_CAPABILITY=avx2`` -- torch's own vectorised kernels at the same level;
+* ``OPENBLAS_CORETYPE=Haswell`` -- numpy's and scipy's OpenBLAS (the follower's network in
+  numpy, the planner's banded Cholesky) at the AVX2 kernels too: OpenBLAS 0.3.31 chooses its
+  AVX-512 kernels on an AVX-512 AMD EPYC, and the SEMDP golden learning curves then differ from
+  the AVX2 ones from the first epoch (measured; with the pin they agree). OpenBLAS reads it
+  when it loads, so semdp must be imported before numpy for it to act.
 
-x86-64 only (elsewhere there is no MKL). ``SEMDP_FREE_KERNELS=1`` leaves both unset (the
+x86-64 only (elsewhere there is no MKL, and OpenBLAS has no Haswell kernels). ``SEMDP_FREE_KERNELS=1`` leaves both unset (the
 processor's fastest paths; runs are then reproducible on that machine kind only).
 """
 
@@ -25,7 +30,8 @@ import os
 import platform
 
 #: The environment this module sets (each only if unset).
-PINNED: dict[str, str] = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2"}
+PINNED: dict[str, str] = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2",
+                          "OPENBLAS_CORETYPE": "Haswell"}
 
 
 def _has_avx2() -> bool:

@@ -22,7 +22,7 @@ def test_the_pin_sets_what_is_unset_and_keeps_what_the_user_set(
         monkeypatch.delenv(key, raising=False)
     monkeypatch.setenv("MKL_CBWR", "COMPATIBLE")
     monkeypatch.delenv("SEMDP_FREE_KERNELS", raising=False)
-    assert pin_cpu_kernels() == {"ATEN_CPU_CAPABILITY": "avx2"}
+    assert pin_cpu_kernels() == {"ATEN_CPU_CAPABILITY": "avx2", "OPENBLAS_CORETYPE": "Haswell"}
     assert os.environ["MKL_CBWR"] == "COMPATIBLE"
     assert os.environ["ATEN_CPU_CAPABILITY"] == "avx2"
 
@@ -41,3 +41,17 @@ def test_torch_runs_at_the_pinned_level_when_semdp_comes_first() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env=env, check=True).stdout.strip()
     assert out == "AVX2"
+
+
+@pytest.mark.skipif(not X86, reason="the pin is for x86-64")
+def test_numpys_openblas_runs_the_pinned_kernels_when_semdp_comes_first() -> None:
+    code = ("import semdp, numpy, ctypes, glob, os; "
+            "lib = [m for m in open('/proc/self/maps').read().split() if 'openblas' in m "
+            "and m.endswith('.so')][0]; "
+            "f = ctypes.CDLL(lib).scipy_openblas_get_corename64_; f.restype = ctypes.c_char_p; "
+            "print(f().decode())")
+    env = {k: v for k, v in os.environ.items() if k not in PINNED}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    if out.returncode != 0:
+        pytest.skip(f"numpy's OpenBLAS does not report its kernels here: {out.stderr[-200:]}")
+    assert out.stdout.strip().lower() == "haswell"
