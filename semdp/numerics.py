@@ -20,8 +20,9 @@ machine; with the pin below the helper runs agree and every re-run is bit-identi
   the AVX2 ones from the first epoch (measured; with the pin they agree). OpenBLAS reads it
   when it loads, so semdp must be imported before numpy for it to act.
 
-x86-64 only (elsewhere there is no MKL, and OpenBLAS has no Haswell kernels). ``SEMDP_FREE_KERNELS=1`` leaves both unset (the
-processor's fastest paths; runs are then reproducible on that machine kind only).
+x86-64 only (elsewhere there is no MKL, and OpenBLAS has no Haswell kernels).
+``SEMDP_FREE_KERNELS=1`` leaves all three unset (the processor's fastest paths; runs are then
+reproducible on that machine kind only).
 """
 
 from __future__ import annotations

@@ -37,7 +37,8 @@ _warned: set[str] = set()
 
 
 def cache_dir() -> Path:
-    """Where compiled functions are kept: ``$SOLVERS_NATIVE_CACHE`` or ``~/.cache/solvers/native``."""
+    """Where compiled functions are kept: ``$SOLVERS_NATIVE_CACHE``, else
+    ``~/.cache/solvers/native``."""
     configured = os.environ.get("SOLVERS_NATIVE_CACHE")
     return Path(configured) if configured else Path.home() / ".cache" / "solvers" / "native"
 

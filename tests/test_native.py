@@ -57,7 +57,7 @@ def test_without_a_compiler_the_caller_keeps_the_virtual_machine(tmp_path, monke
         assert native.native_function(_function(), tmp_path) is None
     assert "no C compiler" in caplog.text and not list(tmp_path.iterdir())
     plans = SafeTrajectoryPlanner(backend=LMSettings(native=True))
-    assert plans.solver.kernel(2).step.class_name() == "SXFunction"  # the VM's function, same numbers
+    assert plans.solver.kernel(2).step.class_name() == "SXFunction"  # the VM's: same numbers
 
 
 def test_the_lm_planner_plans_the_same_with_native_kernels(tmp_path, monkeypatch) -> None:
@@ -71,7 +71,8 @@ def test_the_lm_planner_plans_the_same_with_native_kernels(tmp_path, monkeypatch
         assert np.array_equal(a.waypoints, b.waypoints)
         assert (a.status, a.iterations, a.feasible) == (b.status, b.iterations, b.feasible)
     slots = set(fast.solver.kernels)
-    assert len(slots) >= 2 and all(fast.solver.kernels[n].step.class_name() == "External" for n in slots)
+    assert len(slots) >= 2
+    assert all(fast.solver.kernels[n].step.class_name() == "External" for n in slots)
     assert len(list(tmp_path.glob("lm_step_*.so"))) == len(slots)
 
 
