@@ -25,10 +25,11 @@ def _plain_clearance(model, s: RobotState, regions: np.ndarray) -> float:
     return float((gaps - regions[None, :, 2]).min())
 
 
+@pytest.mark.parametrize("native", [False, True])
 @pytest.mark.parametrize("robot", ["point", "car"])
-def test_kernel_equals_the_plain_path_bit_for_bit(robot: str) -> None:
+def test_kernel_equals_the_plain_path_bit_for_bit(robot: str, native: bool) -> None:
     model, rng = robot_model(robot), np.random.default_rng(7)
-    kernel = ClearanceKernel(model)
+    kernel = ClearanceKernel(model, native=native)
     signs = set()
     for _ in range(1500):
         s = RobotState(*rng.uniform(-1.0, 1.0, 2), *rng.uniform(-1.5, 1.5, 2),
@@ -44,6 +45,7 @@ def test_kernel_equals_the_plain_path_bit_for_bit(robot: str) -> None:
 def test_kernels_are_shared_per_model_class_and_only_where_they_compile() -> None:
     assert kernel_for(robot_model("point")) is kernel_for(robot_model("point"))
     assert kernel_for(robot_model("point")) is not kernel_for(robot_model("car"))
+    assert kernel_for(robot_model("point"), True) is not kernel_for(robot_model("point"))
     assert not compiles(robot_model("mass"))
     with pytest.raises(ValueError, match="brake_points"):
         ClearanceKernel(robot_model("mass"))
@@ -68,9 +70,10 @@ def _filtered_run(robot: str, kernel: str, steps: int = 250) -> tuple[np.ndarray
     return np.array(positions), (stats.steps, stats.checked, stats.braked, stats.escaped)
 
 
+@pytest.mark.parametrize("kernel", ["compiled", "native"])
 @pytest.mark.parametrize("robot", ["point", "car"])
-def test_the_filter_takes_the_same_decisions_with_either_kernel(robot: str) -> None:
-    compiled, compiled_stats = _filtered_run(robot, "compiled")
+def test_the_filter_takes_the_same_decisions_with_every_kernel(robot: str, kernel: str) -> None:
+    compiled, compiled_stats = _filtered_run(robot, kernel)
     plain, plain_stats = _filtered_run(robot, "python")
     assert np.array_equal(compiled, plain)
     assert compiled_stats == plain_stats

@@ -16,6 +16,9 @@ parameter, so that CasADi does not multiply the constants out first), so the ker
 equals the plain path's bit for bit (tests/test_brake_kernel.py checks it on random states and
 on whole filtered episodes) and the filter takes the same decisions with either. Region counts
 are padded to the next power of two with regions far away (one compiled function per count).
+With ``native=True`` each function runs as C compiled once per machine (:mod:`solvers.native`:
+the same operations in the same order, so the same floats; CasADi's virtual machine where no C
+compiler is found).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from semdp.embedded.robot_models import Ops, RobotState
+from solvers.native import native_function
 
 #: A padding region: far from any arena, radius 0 (its gap never the smallest).
 FAR = 1.0e9
@@ -73,16 +77,19 @@ class ClearanceKernel:
     :func:`kernel_for` shares one per model class.
     """
 
-    def __init__(self, model: Any) -> None:
+    def __init__(self, model: Any, native: bool = False) -> None:
         if not compiles(model):
             raise ValueError(f"{type(model).__name__} has no brake_points() to compile")
         self.model = model
+        self.native = bool(native)
         self._slots: dict[int, tuple[Any, ...]] = {}
 
     def _entry(self, count: int) -> tuple[Any, ...]:
         slots = 1 << max(0, math.ceil(math.log2(max(count, 1))))
         if slots not in self._slots:
             function, constants = _build(self.model, slots)
+            if self.native:
+                function = native_function(function) or function
             state, regions, out = np.zeros(6), np.full(3 * slots, FAR), np.zeros(1)
             regions[2::3] = 0.0
             buffer, evaluate = function.buffer()
@@ -105,16 +112,16 @@ class ClearanceKernel:
         return float(out[0])
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"model": self.model, "_slots": {}}
+        return {"model": self.model, "native": self.native, "_slots": {}}
 
 
-_KERNELS: dict[type, ClearanceKernel] = {}
+_KERNELS: dict[tuple[type, bool], ClearanceKernel] = {}
 
 
-def kernel_for(model: Any) -> ClearanceKernel:
+def kernel_for(model: Any, native: bool = False) -> ClearanceKernel:
     """The kernel of ``model``'s robot, shared by the filters of this process (a model's
     constants are its robot class's, so one kernel serves every instance of a model class)."""
-    kind = type(model)
-    if kind not in _KERNELS:
-        _KERNELS[kind] = ClearanceKernel(model)
-    return _KERNELS[kind]
+    key = (type(model), bool(native))
+    if key not in _KERNELS:
+        _KERNELS[key] = ClearanceKernel(model, native)
+    return _KERNELS[key]

@@ -97,8 +97,9 @@ BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
 FALLBACKS = ("escape", "brake")
 
 #: How the certificate is evaluated: ``"compiled"`` (:mod:`semdp.embedded.brake_kernel`, the
-#: same numbers) or ``"python"`` (the plain path).
-KERNELS = ("compiled", "python")
+#: same numbers), ``"native"`` (the same function as C compiled once per machine,
+#: :mod:`solvers.native`; the same numbers again) or ``"python"`` (the plain path).
+KERNELS = ("compiled", "native", "python")
 
 #: Steps an escape from inside a region is held in :meth:`SafetyShield._exit`'s rollouts: the
 #: Button task's grace period after a press (``BUTTON_RESAMPLING_DELAY``), within which the robot
@@ -131,8 +132,9 @@ class SafetyShield:
             one-step clearance among braking and the escape actions) or ``"brake"``.
         kernel: how :meth:`clearance` is evaluated (:data:`KERNELS`): ``"compiled"`` (the
             default: the braking manoeuvre as one CasADi function,
-            :mod:`semdp.embedded.brake_kernel`, equal to the plain path bit for bit) or
-            ``"python"`` (the plain path, the reference).
+            :mod:`semdp.embedded.brake_kernel`, equal to the plain path bit for bit),
+            ``"native"`` (that function as compiled C, equal too) or ``"python"`` (the plain
+            path, the reference).
     """
 
     #: Class-level default: filters pickled before ``fallback`` existed (checkpoints hold the
@@ -337,8 +339,8 @@ class SafetyShield:
                    regions: np.ndarray) -> float:
         """Smallest ``distance - R`` over ``first`` then the braking manoeuvre."""
         s = model.step(state, first)
-        if self.kernel == "compiled" and compiles(model):
-            return kernel_for(model)(s, regions)
+        if self.kernel != "python" and compiles(model):
+            return kernel_for(model, self.kernel == "native")(s, regions)
         points = np.empty((model.horizon + 1, 2))
         points[0] = (s.x, s.y)
         points[1:] = model.brake_path(s)
