@@ -58,22 +58,36 @@ def c_source(function: ca.Function) -> str:
 def native_function(function: ca.Function, directory: Path | None = None) -> ca.Function | None:
     """``function`` compiled to native code (see the module docstring), or None when that is
     not possible here (no C compiler, a failed compilation, a library that does not load)."""
+    library = native_library(function.name(), c_source(function), directory)
+    if library is None:
+        return None
+    try:
+        return ca.external(function.name(), str(library))
+    except RuntimeError as error:
+        _warn_once(f"failed {function.name()}", f"loading {function.name()} failed "
+                   f"({error}); it runs in CasADi's virtual machine (same numbers, slower)")
+        return None
+
+
+def native_library(name: str, source: str, directory: Path | None = None) -> Path | None:
+    """The shared library compiled from the C ``source`` (cached under a name made of ``name``
+    and the hash of the source, the compiler and :data:`FLAGS`), or None when no compiler is
+    found or compiling fails (logged once)."""
     cc = compiler()
     if cc is None:
         _warn_once("no C compiler", "no C compiler ($CC or cc) found: CasADi functions run "
                    "in CasADi's virtual machine (same numbers, slower)")
         return None
-    source = c_source(function)
     key = hashlib.sha256("\0".join([source, cc, *FLAGS]).encode()).hexdigest()[:20]
     folder = cache_dir() if directory is None else Path(directory)
-    library = folder / f"{function.name()}_{key}.so"
+    library = folder / f"{name}_{key}.so"
     try:
         if not library.exists():
             _compile(cc, source, library)
-        return ca.external(function.name(), str(library))
-    except (OSError, RuntimeError, subprocess.CalledProcessError) as error:
-        _warn_once(f"failed {function.name()}", f"compiling {function.name()} failed "
-                   f"({error}); it runs in CasADi's virtual machine (same numbers, slower)")
+        return library
+    except (OSError, subprocess.CalledProcessError, subprocess.TimeoutExpired) as error:
+        _warn_once(f"failed {name}", f"compiling {name} failed ({error}); it runs in "
+                   "CasADi's virtual machine or Python (same numbers, slower)")
         return None
 
 

@@ -64,6 +64,12 @@ class BandedKernel:
         self._cost_eval()
         return float(self.fc[0])
 
+    def minimise(self, z0: np.ndarray, *, iterations: int, damping: float,
+                 backtracks: int = 8) -> tuple[np.ndarray, float, int]:
+        """:func:`levenberg_marquardt` on this kernel (its parameters already set)."""
+        return levenberg_marquardt(self, z0, iterations=iterations, damping=damping,
+                                   backtracks=backtracks)
+
     def direction(self, mu: float) -> np.ndarray:
         """Damped Gauss-Newton step ``-(J^T J + mu D)^{-1} J^T r`` at the last evaluation.
 
