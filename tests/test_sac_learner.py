@@ -29,7 +29,7 @@ from semdp.algos.sac import SAC
 from semdp.algos.twin_q import FusedTwinQ
 from semdp.cli.train import build_algorithm, run
 from semdp.common.logger import TIMING_COLUMNS
-from semdp.common.networks import TwinQCritic
+from semdp.common.networks import SquashedGaussianActor, TwinQCritic
 from solvers.workers import HelperError
 
 #: The tiny SAC of tests/conftest.py with the round loop (16 env steps per round).
@@ -74,6 +74,23 @@ def test_fused_twin_q_is_the_twin_critic() -> None:
     torch.testing.assert_close(fused(obs, act), torch.stack([q1, q2]), rtol=0, atol=1e-6)
     frozen = [p.detach() for p in fused.parameters()]
     assert not fused(obs, act, frozen).requires_grad
+
+
+def test_the_actors_sample_is_its_forward_action_with_the_same_draw() -> None:
+    torch.manual_seed(0)
+    actor = SquashedGaussianActor(7, 2, (16, 16))
+    obs = torch.randn(5, 7) * 3.0
+    with torch.inference_mode():
+        torch.manual_seed(11)
+        expected, _ = actor(obs)
+        after_forward = torch.rand(3)
+        torch.manual_seed(11)
+        sampled = actor.sample(obs)
+        after_sample = torch.rand(3)
+    assert torch.equal(sampled, expected)
+    assert torch.equal(after_sample, after_forward)  # the generator advanced alike
+    torch.manual_seed(12)
+    assert not torch.equal(actor.sample(obs), sampled)
 
 
 @pytest.mark.parametrize("shared", [False, True])

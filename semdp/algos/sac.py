@@ -192,7 +192,7 @@ class SAC(Algorithm):
                 unit = torch.rand(self.num_envs, self.act_dim) * 2 - 1
             else:
                 with torch.inference_mode():
-                    unit, _ = self.actor(torch.as_tensor(self._obs, dtype=torch.float32))
+                    unit = self.actor.sample(torch.as_tensor(self._obs, dtype=torch.float32))
             next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
             ended = np.logical_or(term, trunc)
             costs, final_obs = split_step_infos(next_obs, infos, ended)

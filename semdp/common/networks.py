@@ -136,6 +136,16 @@ class SquashedGaussianActor(nn.Module):
         log_prob = (dist.log_prob(pre_tanh) - correction).sum(-1)
         return action, log_prob
 
+    def sample(self, obs: torch.Tensor) -> torch.Tensor:
+        """The action of :meth:`forward` without its log-probability: the same random draw and
+        the same floats, for collecting steps (half the operator calls)."""
+        mean, raw_log_std = self.net(obs).chunk(2, dim=-1)
+        span = self.LOG_STD_MAX - self.LOG_STD_MIN
+        log_std = self.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
+        # Normal.rsample: loc + eps * scale, eps from normal_() on a fresh tensor
+        noise = torch.empty(mean.shape, dtype=mean.dtype, device=mean.device).normal_()
+        return torch.tanh(mean + noise * log_std.exp())
+
 
 class TwinQCritic(nn.Module):
     """Two independent Q(s, a) networks (clipped double Q)."""

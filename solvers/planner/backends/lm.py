@@ -25,6 +25,7 @@ by :mod:`solvers.planner.backends.banded_least_squares` (one banded Cholesky sol
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -32,7 +33,7 @@ from typing import ClassVar
 import casadi as ca
 import numpy as np
 
-from solvers.native import native_function
+from solvers.native import cache_dir, compiler, native_function
 from solvers.planner.backends.banded_least_squares import BandedKernel
 from solvers.planner.backends.base import bucket_size
 from solvers.planner.backends.native_lm import native_banded_kernel
@@ -185,6 +186,12 @@ def build_lm_functions(
 CANDIDATE_BUDGET_FACTOR = 0.01
 
 
+#: Kernels built in this process, by problem, settings, slot count and prior: the LM backends of
+#: equal problems (the planners of lockstep envs) share them instead of building each (0.05-0.1 s
+#: apiece). A kernel keeps nothing between calls: its parameters are set before every use.
+_KERNELS: dict[tuple[object, ...], BandedKernel] = {}
+
+
 class LMBackend:
     """Solve the prepared problem with Levenberg-Marquardt (see the module docstring).
 
@@ -205,17 +212,27 @@ class LMBackend:
         self.kernels: dict[int, BandedKernel] = {}
 
     def kernel(self, n_slots: int) -> BandedKernel:
-        """The compiled kernel for ``n_slots`` obstacle slots (built once)."""
+        """The compiled kernel for ``n_slots`` obstacle slots (built once per process for equal
+        problems and settings, see :data:`_KERNELS`)."""
         if n_slots not in self.kernels:
-            problem = self.context.settings
-            step, cost = build_lm_functions(self.context.prior, problem, self.settings, n_slots)
-            perm = w_order(problem.n_waypoints)
-            kernel = native_banded_kernel(step, cost, perm) if self.settings.native else None
-            if kernel is None and self.settings.native:
-                kernel = BandedKernel(native_function(step) or step,
-                                      native_function(cost) or cost, perm)
-            self.kernels[n_slots] = kernel or BandedKernel(step, cost, perm)
+            prior = self.context.prior
+            key = (self.context.settings, self.settings, self.settings.native, n_slots,
+                   hashlib.sha256(prior.W.tobytes() + prior.goal_map.tobytes()).hexdigest(),
+                   (compiler(), str(cache_dir())) if self.settings.native else None)
+            if key not in _KERNELS:
+                _KERNELS[key] = self._build_kernel(n_slots)
+            self.kernels[n_slots] = _KERNELS[key]
         return self.kernels[n_slots]
+
+    def _build_kernel(self, n_slots: int) -> BandedKernel:
+        """The iteration in C where possible, else the kernels in C, else CasADi's VM."""
+        problem = self.context.settings
+        step, cost = build_lm_functions(self.context.prior, problem, self.settings, n_slots)
+        perm = w_order(problem.n_waypoints)
+        if not self.settings.native:
+            return BandedKernel(step, cost, perm)
+        return native_banded_kernel(step, cost, perm) or BandedKernel(
+            native_function(step) or step, native_function(cost) or cost, perm)
 
     def warmup(self, slot_counts: Iterable[int]) -> None:
         """Build the kernels for these slot counts now."""
