@@ -20,12 +20,14 @@ from typing import Any
 import numpy as np
 import pytest
 import torch
+from hydra.errors import InstantiationException
 from omegaconf import DictConfig, open_dict
 
 import semdp.algos.sac as sac_module
 from semdp.algos.learner_host import ProcessLearner
 from semdp.algos.replay_shared import FIELDS, SharedReplayBuffer
 from semdp.algos.sac import SAC
+from semdp.algos.sac_learner import LearnerSettings, SACLearner
 from semdp.algos.twin_q import FusedTwinQ
 from semdp.cli.train import build_algorithm, run
 from semdp.common.logger import TIMING_COLUMNS
@@ -91,6 +93,31 @@ def test_the_actors_sample_is_its_forward_action_with_the_same_draw() -> None:
     assert torch.equal(after_sample, after_forward)  # the generator advanced alike
     torch.manual_seed(12)
     assert not torch.equal(actor.sample(obs), sampled)
+
+
+@pytest.mark.parametrize(("policy_steps", "actor_steps"), [(0, 6), (1, 3), (3, 9)])
+def test_policy_steps_sets_the_actor_updates_per_delay(policy_steps: int,
+                                                         actor_steps: int) -> None:
+    """6 critic updates at policy_frequency 2: CleanRL's 2 actor (and temperature) updates every
+    second critic update (6), TD3's one (3), or any count."""
+    n = 64
+    storage = {"obs": torch.randn(n, 5), "next_obs": torch.randn(n, 5),
+               "actions": torch.rand(n, 2) * 2 - 1, "rewards": torch.randn(n),
+               "terminated": torch.zeros(n)}
+    settings = LearnerSettings(5, 2, (8, 8), 3e-4, 1e-3, 0.99, 0.005, 16, 2, 1.0, True, -2.0,
+                               1e-3, 0, policy_steps=policy_steps)
+    learner = SACLearner(settings, storage)
+    out = learner.run(6, n)
+    assert learner.updates == 6 and len(out["loss_q"]) == 6 and len(out["loss_pi"]) == 3
+    steps = {int(state["step"]) for state in learner.actor_optimizer.state.values()}
+    assert steps == {actor_steps}
+    assert {int(s["step"]) for s in learner.alpha_optimizer.state.values()} == {actor_steps}
+    assert {int(s["step"]) for s in learner.critic_optimizer.state.values()} == {6}
+
+
+def test_sac_rejects_policy_steps_below_one(tiny_train: Callable[..., DictConfig]) -> None:
+    with pytest.raises(InstantiationException, match="policy_steps must be >= 1"):
+        build_algorithm(tiny_train("sac", "algo.policy_steps=0"))
 
 
 @pytest.mark.parametrize("shared", [False, True])

@@ -56,8 +56,10 @@ class SAC(Algorithm):
         buffer_size: replay capacity (transitions).
         learning_starts: env steps of uniformly random actions before learning.
         updates_per_step: gradient updates per env step (summed over sub-envs).
-        policy_frequency: actor/temperature update every this many critic updates (done that
-            many times to compensate).
+        policy_frequency: actor/temperature updates every this many critic updates.
+        policy_steps: actor/temperature updates each time (None: ``policy_frequency``, CleanRL's
+            compensation, one actor update per critic update; 1: TD3's delayed actor, half the
+            actor's arithmetic at ``policy_frequency=2``).
         alpha: initial (or fixed, without ``autotune``) entropy temperature.
         autotune: learn alpha towards ``target_entropy``.
         target_entropy: defaults to ``-dim(A)``.
@@ -88,6 +90,7 @@ class SAC(Algorithm):
         learning_starts: int = 5000,
         updates_per_step: float = 1.0,
         policy_frequency: int = 2,
+        policy_steps: int | None = None,
         alpha: float = 1.0,
         autotune: bool = True,
         target_entropy: float | None = None,
@@ -111,6 +114,9 @@ class SAC(Algorithm):
                 "need batch_size >= 1, policy_frequency >= 1, learning_starts >= 0; got "
                 f"{batch_size}, {policy_frequency}, {learning_starts}"
             )
+        policy_steps = policy_frequency if policy_steps is None else int(policy_steps)
+        if policy_steps < 1:
+            raise ValueError(f"policy_steps must be >= 1 (or null), got {policy_steps}")
         if updates_per_step <= 0 or alpha <= 0:
             raise ValueError(f"updates_per_step and alpha must be > 0, got {updates_per_step}, "
                              f"{alpha}")
@@ -132,7 +138,8 @@ class SAC(Algorithm):
         settings = LearnerSettings(
             obs_dim=self.obs_dim, act_dim=self.act_dim, hidden_sizes=hidden,
             actor_lr=actor_lr, critic_lr=critic_lr, gamma=gamma, tau=tau,
-            batch_size=batch_size, policy_frequency=policy_frequency, alpha=alpha,
+            batch_size=batch_size, policy_frequency=policy_frequency,
+            policy_steps=policy_steps, alpha=alpha,
             autotune=autotune, target_entropy=self.target_entropy, alpha_lr=alpha_lr,
             seed=self.seed + LEARNER_SEED_OFFSET,
         )

@@ -6,10 +6,10 @@ Alg. 2).
 and its target, the three optimisers and the temperature, and runs ``n`` gradient updates on
 the replay rows it is told are filled, for every loop of :class:`semdp.algos.sac.SAC`. The
 update is CleanRL's: clipped double-Q target with the entropy term, policy delay
-``policy_frequency`` (then that many actor and temperature steps), Polyak-averaged target
-critics; it only drops work whose result is discarded (critic weight gradients of the actor
-loss). Randomness (minibatch indices, the
-policy's reparameterisation noise) comes from the learner's own generator, so the learner gives
+``policy_frequency`` (then that many actor and temperature steps, or ``policy_steps``),
+Polyak-averaged target critics; it only drops work whose result is discarded (critic weight
+gradients of the actor loss). Randomness (minibatch indices, the policy's reparameterisation
+noise) comes from the learner's own generator, so the learner gives
 the same numbers in the training process and in a process of its own.
 """
 
@@ -50,6 +50,7 @@ class LearnerSettings:
     target_entropy: float
     alpha_lr: float
     seed: int
+    policy_steps: int = 0  # actor updates each policy_frequency critic updates (0: as many)
 
 
 def networks_state(owner: Any) -> dict[str, Any]:
@@ -140,7 +141,7 @@ class SACLearner:
         logs["q_mean"].append(q[0].detach().mean())
         if self.updates % s.policy_frequency == 0:
             frozen = [p.detach() for p in self._critic_params]
-            for _ in range(s.policy_frequency):
+            for _ in range(s.policy_steps or s.policy_frequency):
                 a, logp = self._policy(obs)
                 q_pi = self.critic(obs, a, frozen).min(0).values
                 loss_pi = (self.log_alpha.detach().exp() * logp - q_pi).mean()
