@@ -61,6 +61,10 @@ VARIANTS: dict[str, IpoptSettings | LMSettings | SCPSettings] = {
     "lm": LMSettings(iterations=10, adaptive=False),
     "lm_adaptive": LMSettings(iterations=10, adaptive=True),
     "scp": SCPSettings(),
+    # the same LM as native code (solvers/native.py, backends/native_lm.py): same plans, faster;
+    # not in the default list (backends=[lm,lm_native,...] compares them)
+    "lm_native": LMSettings(iterations=10, adaptive=False, native=True),
+    "lm_adaptive_native": LMSettings(iterations=10, adaptive=True, native=True),
 }
 
 
