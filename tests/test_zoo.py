@@ -13,8 +13,9 @@ from semdp.evaluation.run import check_run_dir, evaluate_run
 from semdp.evaluation.zoo import INDEX, entries, resolve
 
 ZOO = entries()
-#: One entry per robot that has one (the test of the issue: a table value reproduced).
-CHECKED = sorted({name.split("_")[1]: name for name in sorted(ZOO)}.values())
+#: One entry per method and robot (names ``<method>_<robot>_<task>_s<seed>``): a table value
+#: reproduced.
+CHECKED = sorted({tuple(name.split("_")[:2]): name for name in sorted(ZOO)}.values())
 
 
 def test_the_zoo_has_entries_and_each_holds_a_policy_and_its_evaluation() -> None:
@@ -51,19 +52,22 @@ def test_the_zoo_table_is_rebuilt_from_the_committed_files() -> None:
     assert committed.read_text() == zoo_table(entry_rows())
 
 
-def test_the_zoo_table_averages_an_envs_seeds(tmp_path: Path) -> None:
+def test_the_zoo_table_averages_a_methods_seeds_per_env(tmp_path: Path) -> None:
     from semdp.reporting.zoo_table import entry_rows, zoo_table
 
-    for seed, ret in ((0, 4.0), (1, 6.0)):
-        run = tmp_path / f"r{seed}"
+    for name, label, seed, ret in (("r0", "Ours", 0, 4.0), ("r1", "Ours", 1, 6.0),
+                                   ("r2", "PPO Lag", 0, 1.0)):
+        run = tmp_path / name
         run.mkdir()
         summary = {"return_mean": ret, "return_std": 1.0, "cost_mean": 0.0, "episodes": 50,
                    "episodes_with_cost": 0, "plans": 5000, "plan_fallbacks": 0}
         (run / "eval.json").write_text(json.dumps(
-            {"env": "semdp_car_push1", "seed": seed, "env_steps": 200000, "eval": summary}))
-    (tmp_path / "zoo.yaml").write_text("a: r0\nb: r1\n")
+            {"label": f"{label} [eval]", "env": "semdp_car_push1", "seed": seed,
+             "env_steps": 200000, "eval": summary}))
+    (tmp_path / "zoo.yaml").write_text("a: r0\nb: r1\nc: r2\n")
     table = zoo_table(entry_rows(tmp_path / "zoo.yaml"))
     # mean 5, sample standard deviation sqrt(2), standard error sqrt(2) / sqrt(2) = 1
-    assert "| semdp_car_push1 | 2 | 5.00 ± 1.00 | 0.00 ± 0.00 |" in table
-    assert "| `a` | semdp_car_push1 | 0 | 200,000 | 4.000 ± 1.000 | 0.000 | 0 / 50 | 0 / 5000 |" \
-        in table
+    assert "| Ours | semdp_car_push1 | 2 | 5.00 ± 1.00 | 0.00 ± 0.00 |" in table
+    assert "| PPO Lag | semdp_car_push1 | 1 | 1.00 ± – | 0.00 ± – |" in table
+    assert ("| `a` | Ours | semdp_car_push1 | 0 | 200,000 | 4.000 ± 1.000 | 0.000 | 0 / 50 "
+            "| 0 / 5000 |") in table

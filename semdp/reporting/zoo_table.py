@@ -31,7 +31,8 @@ def entry_rows(index: Path = INDEX) -> list[dict[str, object]]:
         recorded = json.loads((run_dir / "eval.json").read_text())
         summary = recorded["eval"]
         rows.append({
-            "name": name, "env": recorded["env"], "seed": recorded["seed"],
+            "name": name, "method": recorded.get("label", "").removesuffix(" [eval]"),
+            "env": recorded["env"], "seed": recorded["seed"],
             "env_steps": recorded["env_steps"], "return": summary["return_mean"],
             "return_std": summary["return_std"], "cost": summary["cost_mean"],
             "episodes": summary["episodes"], "with_cost": summary.get("episodes_with_cost"),
@@ -41,26 +42,27 @@ def entry_rows(index: Path = INDEX) -> list[dict[str, object]]:
 
 
 def zoo_table(rows: Sequence[dict[str, object]]) -> str:
-    """The markdown table: per entry, then per env mean ± SE over its entries."""
+    """The markdown table: per entry, then per method and env mean ± SE over its entries."""
     lines = [TITLE, "", "Built by `python -m semdp.reporting.zoo_table` from `zoo.yaml` and each "
              "entry's `eval.json`: 50 single-env episodes, mean action, evaluation seeds "
              "10000-10049 + the run's seed. Training steps are the run's `env_steps` "
              "(high-level steps for a SEMDP run: 10 env steps each).", "",
-             "| entry | env | seed | training steps | return (± std) | cost | episodes with "
-             "cost | fallback plans |", "|---|---|---|---|---|---|---|---|"]
-    by_env: dict[str, list[dict[str, object]]] = defaultdict(list)
+             "| entry | method | env | seed | training steps | return (± std) | cost | episodes "
+             "with cost | fallback plans |", "|---|---|---|---|---|---|---|---|---|"]
+    by_env: dict[tuple[str, str], list[dict[str, object]]] = defaultdict(list)
     for row in rows:
-        by_env[str(row["env"])].append(row)
+        by_env[(str(row["method"]), str(row["env"]))].append(row)
         fallbacks = "–" if row["fallbacks"] is None else f"{row['fallbacks']} / {row['plans']}"
-        lines.append(f"| `{row['name']}` | {row['env']} | {row['seed']} | {row['env_steps']:,} "
+        lines.append(f"| `{row['name']}` | {row['method']} | {row['env']} | {row['seed']} | "
+                     f"{row['env_steps']:,} "
                      f"| {row['return']:.3f} ± {row['return_std']:.3f} | {row['cost']:.3f} | "
                      f"{row['with_cost']} / {row['episodes']} | {fallbacks} |")
-    lines += ["", "| env | entries | return, mean ± SE over seeds | cost, mean ± SE |",
-              "|---|---|---|---|"]
-    for env, group in sorted(by_env.items()):
+    lines += ["", "| method | env | entries | return, mean ± SE over seeds | cost, mean ± SE |",
+              "|---|---|---|---|---|"]
+    for (method, env), group in sorted(by_env.items()):
         returns = [float(r["return"]) for r in group]  # type: ignore[arg-type]
         costs = [float(r["cost"]) for r in group]  # type: ignore[arg-type]
-        lines.append(f"| {env} | {len(group)} | {format_cell(returns, len(group))} | "
+        lines.append(f"| {method} | {env} | {len(group)} | {format_cell(returns, len(group))} | "
                      f"{format_cell(costs, len(group))} |")
     return "\n".join(lines) + "\n"
 
