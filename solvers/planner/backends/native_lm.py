@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 import scipy.linalg.cython_lapack as cython_lapack
 
-from solvers.native import FLAGS, native_library
+from solvers.native import native_library
 from solvers.planner.backends.banded_least_squares import BandedKernel
 
 logger = logging.getLogger(__name__)
@@ -299,4 +299,4 @@ def _numpy_ddot() -> tuple[int, bool] | None:
     return None
 
 
-__all__ = ["FLAGS", "NativeBandedKernel", "native_banded_kernel", "source"]
+__all__ = ["NativeBandedKernel", "native_banded_kernel", "source"]
