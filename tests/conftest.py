@@ -14,6 +14,7 @@ import torch
 # isort: on
 from omegaconf import DictConfig, open_dict
 
+from semdp.common.seeding import seed_everything
 from semdp.configs import compose_config
 
 #: Overrides that shrink any algorithm to a seconds-long run on the test CMDP.
@@ -41,6 +42,14 @@ def _one_torch_thread() -> Iterator[None]:
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(threads)
+
+
+@pytest.fixture(autouse=True)
+def _seeded_global_generators() -> None:
+    """Every test starts from the global generators seeded with 0, as the training app seeds
+    them (``seed_everything``), so a test that builds networks itself draws the same weights
+    whatever ran before it in the process."""
+    seed_everything(0)
 
 
 def pin_helpers(cfg: DictConfig) -> DictConfig:

@@ -222,7 +222,7 @@ def test_rollout_bootstraps_time_outs_with_the_final_observation_and_not_termina
     algo.collect_rollout()
     b = algo.buffer
     timed_out = (b.episode_end == 1) & (b.terminated == 0)
-    assert timed_out.sum() >= 2  # both envs hit the 100-step limit at least once
+    assert timed_out.any(axis=0).all()  # both envs hit the 100-step limit at least once
     np.testing.assert_allclose(b.next_values_r[timed_out], 10.0, rtol=1e-6)  # V(t/T = 1)
     np.testing.assert_allclose(b.next_values_c[timed_out], 10.0, rtol=1e-6)
     inner = b.episode_end[:-1] == 0
