@@ -130,9 +130,10 @@ def test_replay_buffer_is_a_ring_of_the_latest_rows(shared: bool) -> None:
     for n in (4, 3, 5, 12, 1):  # wraps around, and one batch larger than the capacity
         batch = {"obs": rng.normal(size=(n, 3)), "actions": rng.normal(size=(n, 2)),
                  "rewards": rng.normal(size=n), "costs": rng.normal(size=n),
-                 "next_obs": rng.normal(size=(n, 3)), "terminated": rng.integers(0, 2, n)}
+                 "next_obs": rng.normal(size=(n, 3)), "terminated": rng.integers(0, 2, n),
+                 "horizons": rng.integers(1, 4, n)}
         ours.add_batch(batch["obs"], batch["actions"], batch["rewards"], batch["costs"],
-                       batch["next_obs"], batch["terminated"])
+                       batch["next_obs"], batch["terminated"], batch["horizons"])
         for name in FIELDS:
             stream[name].extend(batch[name].astype(np.float32))
         total = len(stream["obs"])
@@ -146,6 +147,14 @@ def test_replay_buffer_is_a_ring_of_the_latest_rows(shared: bool) -> None:
     again = SharedReplayBuffer(10, 3, 2)
     again.load_state_dict(state)
     np.testing.assert_array_equal(again.arrays["obs"], ours.arrays["obs"])
+    np.testing.assert_array_equal(again.arrays["horizons"], ours.arrays["horizons"])
+    del state["horizons"]  # a checkpoint from before n-step rows: one-step horizons
+    again.load_state_dict(state)
+    np.testing.assert_array_equal(again.arrays["horizons"], np.ones(10, np.float32))
+    pos = ours.pos
+    ours.add_batch(np.zeros((2, 3)), np.zeros((2, 2)), np.zeros(2), np.zeros(2), np.zeros((2, 3)),
+                   np.zeros(2))  # no horizons given: one-step rows
+    np.testing.assert_array_equal(ours.arrays["horizons"][[pos, (pos + 1) % 10]], [1.0, 1.0])
 
 
 def test_learner_process_gives_the_inline_numbers(

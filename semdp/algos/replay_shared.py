@@ -20,7 +20,8 @@ import numpy as np
 import torch
 
 #: Names of the stored fields, in ``state_dict`` order.
-FIELDS: tuple[str, ...] = ("obs", "next_obs", "actions", "rewards", "costs", "terminated")
+FIELDS: tuple[str, ...] = ("obs", "next_obs", "actions", "rewards", "costs", "terminated",
+                           "horizons")
 
 
 class SharedReplayBuffer:
@@ -38,7 +39,7 @@ class SharedReplayBuffer:
         self.capacity = int(capacity)
         shapes = {"obs": (capacity, obs_dim), "next_obs": (capacity, obs_dim),
                   "actions": (capacity, act_dim), "rewards": (capacity,),
-                  "costs": (capacity,), "terminated": (capacity,)}
+                  "costs": (capacity,), "terminated": (capacity,), "horizons": (capacity,)}
         self.layout: list[tuple[str, tuple[int, ...], int]] = []
         offset = 0
         for name, shape in shapes.items():
@@ -66,10 +67,17 @@ class SharedReplayBuffer:
         costs: np.ndarray,
         next_obs: np.ndarray,
         terminated: np.ndarray,
+        horizons: np.ndarray | None = None,
     ) -> None:
-        """Store ``n`` transitions (leading axis), oldest first, overwriting the oldest rows."""
+        """Store ``n`` transitions (leading axis), oldest first, overwriting the oldest rows.
+
+        ``horizons``: env steps summed in each row's reward (n-step rows,
+        :mod:`semdp.algos.n_step`); None for one-step transitions (1).
+        """
+        if horizons is None:
+            horizons = np.ones(len(rewards), dtype=np.float32)
         rows = {"obs": obs, "actions": actions, "rewards": rewards, "costs": costs,
-                "next_obs": next_obs, "terminated": terminated}
+                "next_obs": next_obs, "terminated": terminated, "horizons": horizons}
         rows = {name: np.asarray(values, dtype=np.float32) for name, values in rows.items()}
         n, start = len(rows["rewards"]), 0
         while start < n:
@@ -87,10 +95,10 @@ class SharedReplayBuffer:
                 **{name: self.arrays[name][:n].copy() for name in FIELDS}}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict`."""
+        """Restore :meth:`state_dict` (one-step horizons where a checkpoint predates them)."""
         n = state["size"]
         for name in FIELDS:
-            self.arrays[name][:n] = state[name]
+            self.arrays[name][:n] = state[name] if name in state else 1.0
         self.pos, self.size = state["pos"], n
 
 

@@ -30,6 +30,7 @@ import torch
 
 from semdp.algos.base import Algorithm
 from semdp.algos.learner_host import InlineLearner, ProcessLearner
+from semdp.algos.n_step import NStepReturns
 from semdp.algos.replay_shared import SharedReplayBuffer
 from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
 from semdp.envs import split_step_infos
@@ -70,6 +71,8 @@ class SAC(Algorithm):
         sync_every: env steps (summed over sub-envs) per round of the ``process``/``inline``
             loops: the collector's weights are at most this many steps old.
         learner_threads: torch threads of the learner process.
+        n_step: rewards summed per replay row (:mod:`semdp.algos.n_step`; None or 1: one-step
+            transitions, SAC as published).
     """
 
     extra_columns = ("loss_q", "loss_pi", "alpha", "q_mean", "entropy")
@@ -98,6 +101,7 @@ class SAC(Algorithm):
         learner: str = "sequential",
         sync_every: int = 64,
         learner_threads: int = 1,
+        n_step: int | None = None,
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
         if learner not in LEARNERS:
@@ -117,6 +121,9 @@ class SAC(Algorithm):
         policy_steps = policy_frequency if policy_steps is None else int(policy_steps)
         if policy_steps < 1:
             raise ValueError(f"policy_steps must be >= 1 (or null), got {policy_steps}")
+        n_step = 1 if n_step is None else int(n_step)
+        if n_step < 1:
+            raise ValueError(f"n_step must be >= 1, got {n_step}")
         if updates_per_step <= 0 or alpha <= 0:
             raise ValueError(f"updates_per_step and alpha must be > 0, got {updates_per_step}, "
                              f"{alpha}")
@@ -141,8 +148,10 @@ class SAC(Algorithm):
             batch_size=batch_size, policy_frequency=policy_frequency,
             policy_steps=policy_steps, alpha=alpha,
             autotune=autotune, target_entropy=self.target_entropy, alpha_lr=alpha_lr,
-            seed=self.seed + LEARNER_SEED_OFFSET,
+            seed=self.seed + LEARNER_SEED_OFFSET, n_step=n_step,
         )
+        #: n-step rows (None: one-step transitions, stored as they come).
+        self._n_step = NStepReturns(n_step, gamma, self.num_envs) if n_step > 1 else None
         self._core = SACLearner(settings, self.buffer.tensors)
         core = self._core
         self.actor, self.critic, self.critic_target = core.actor, core.critic, core.critic_target
@@ -193,7 +202,7 @@ class SAC(Algorithm):
         """``steps`` vector steps with the current actor (uniform actions before
         ``learning_starts``); the transitions to store and the updates they earned."""
         staged: list[tuple[np.ndarray, ...]] = []
-        owed = 0
+        owed, rows = 0, 0
         for _ in range(steps):
             if self.env_steps < self.learning_starts:
                 unit = torch.rand(self.num_envs, self.act_dim) * 2 - 1
@@ -203,12 +212,16 @@ class SAC(Algorithm):
             next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
             ended = np.logical_or(term, trunc)
             costs, final_obs = split_step_infos(next_obs, infos, ended)
-            staged.append((self._obs, unit.numpy(), rewards, costs,
-                           self._flat_obs(final_obs), term.astype(np.float32)))
+            step = (self._obs, unit.numpy(), rewards, costs, self._flat_obs(final_obs),
+                    term.astype(np.float32))
+            if self._n_step is not None:
+                step = self._n_step.push(*step, ended)
+            staged.append(step)
+            rows += len(step[2])
             self._track(rewards, costs, ended)
             self._obs = self._flat_obs(next_obs)
             self.env_steps += self.num_envs
-            stored = min(self.buffer.size + len(staged) * self.num_envs, self.buffer.capacity)
+            stored = min(self.buffer.size + rows, self.buffer.capacity)
             if self.env_steps >= self.learning_starts and stored >= self.batch_size:
                 self._update_credit += self.updates_per_step * self.num_envs
                 while self._update_credit >= 1.0:
@@ -223,8 +236,11 @@ class SAC(Algorithm):
     def state_dict(self) -> dict[str, Any]:
         """Networks, optimisers, temperature, the learner's generator and the replay buffer."""
         learner = self._host.state_dict() if self._host is not None else self._core.state_dict()
-        return {**super().state_dict(), **learner, "buffer": self.buffer.state_dict(),
-                "update_credit": self._update_credit}
+        state = {**super().state_dict(), **learner, "buffer": self.buffer.state_dict(),
+                 "update_credit": self._update_credit}
+        if self._n_step is not None:
+            state["n_step"] = self._n_step.state_dict()
+        return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
@@ -234,6 +250,11 @@ class SAC(Algorithm):
             self._host.load_state_dict(state)
         self.buffer.load_state_dict(state["buffer"])
         self._update_credit = state["update_credit"]
+        if self._n_step is not None:
+            if state.get("envs") is None:  # the episodes in progress were restarted
+                self._n_step.clear()
+            else:
+                self._n_step.load_state_dict(state["n_step"])
 
     # ----------------------------------------------------------------- rounds (learner process)
     def _ensure_host(self) -> InlineLearner | ProcessLearner:

@@ -51,6 +51,7 @@ class LearnerSettings:
     alpha_lr: float
     seed: int
     policy_steps: int = 0  # actor updates each policy_frequency critic updates (0: as many)
+    n_step: int = 1  # > 1: rows are n-step returns bootstrapping gamma^horizon ahead
 
 
 def networks_state(owner: Any) -> dict[str, Any]:
@@ -73,7 +74,8 @@ class SACLearner:
     Args:
         settings: sizes and hyper-parameters.
         storage: the replay tensors ``obs``, ``next_obs``, ``actions``, ``rewards``,
-            ``terminated`` (:class:`~semdp.algos.replay_shared.SharedReplayBuffer.tensors`).
+            ``terminated`` and, for n-step rows, ``horizons``
+            (:class:`~semdp.algos.replay_shared.SharedReplayBuffer.tensors`).
         actor: the actor to train (built here when None).
     """
 
@@ -130,7 +132,11 @@ class SACLearner:
             next_a, next_logp = self._policy(next_obs)
             q_next = self.critic_target(next_obs, next_a, self._target_params)
             soft_v = q_next.min(0).values - alpha * next_logp
-            target = rewards + s.gamma * (1.0 - terminated) * soft_v
+            if s.n_step > 1:  # n-step rows (semdp.algos.n_step): bootstrap gamma^m ahead
+                discount = s.gamma ** st["horizons"].index_select(0, idx)
+                target = rewards + discount * (1.0 - terminated) * soft_v
+            else:
+                target = rewards + s.gamma * (1.0 - terminated) * soft_v
         q = self.critic(obs, actions, self._critic_params)
         loss_q = (q - target).square().mean(1).sum()
         self.critic_optimizer.zero_grad(set_to_none=True)
