@@ -1,24 +1,21 @@
 """n-step returns for SAC (semdp/algos/n_step.py): hand-computed rows, rows rebuilt from a
-one-step run of the same seed, the learner's gamma^m bootstrap, and exact resume."""
+one-step run of the same seed and the learner's gamma^m bootstrap (exact resume with windows
+pending: tests/test_sac_learner.py)."""
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 import torch
 from hydra.errors import InstantiationException
-from omegaconf import DictConfig, open_dict
+from omegaconf import DictConfig
 
 from semdp.algos.n_step import NStepReturns
-from semdp.algos.sac import SAC
 from semdp.algos.sac_learner import LearnerSettings, SACLearner
-from semdp.cli.train import build_algorithm, run
-from semdp.common.logger import TIMING_COLUMNS
+from semdp.cli.train import build_algorithm
 
 
 def _push(acc: NStepReturns, t: int, reward: float, end: str = "") -> tuple[np.ndarray, ...]:
@@ -164,36 +161,3 @@ def test_the_learner_bootstraps_gamma_to_the_horizon() -> None:
 def test_sac_rejects_n_step_below_one(tiny_train: Callable[..., DictConfig]) -> None:
     with pytest.raises(InstantiationException, match="n_step must be >= 1"):
         build_algorithm(tiny_train("sac", "algo.n_step=0"))
-
-
-def _rows(path: Path) -> list[dict[str, str]]:
-    import csv
-
-    with (path / "progress.csv").open() as f:
-        return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in csv.DictReader(f)]
-
-
-def test_an_n_step_run_resumes_exactly_after_a_crash(
-    tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-    crash_in_epoch_3: Callable[[type], Callable[..., Any]],
-) -> None:
-    """The pending windows are in the checkpoint: a resumed run is the uninterrupted one.
-    (Epochs of 80 vector steps end inside the 100-step episodes, so windows are pending.)"""
-    config = functools.partial(tiny_train, "sac", "algo.n_step=3", "algo.sync_every=16",
-                               "algo.learner=inline", "checkpoint_every=1",
-                               "budget.steps_per_epoch=160", "total_steps=640")
-    reference = run(config(), tmp_path / "ref")
-    original = crash_in_epoch_3(SAC)
-    with pytest.raises(RuntimeError, match="simulated crash"):
-        run(config(), tmp_path / "crashed")
-    monkeypatch.setattr(SAC, "train_epoch", original)
-    resumed_cfg = config()
-    with open_dict(resumed_cfg):
-        resumed_cfg.resume = str(tmp_path / "crashed")
-    resumed = run(resumed_cfg, tmp_path / "ignored")
-    assert _rows(tmp_path / "crashed") == _rows(tmp_path / "ref")
-    assert resumed["eval"] == reference["eval"]
-    one_step = run(tiny_train("sac", "algo.sync_every=16", "algo.learner=inline",
-                              "budget.steps_per_epoch=160", "total_steps=640"), tmp_path / "one")
-    assert _rows(tmp_path / "one") != _rows(tmp_path / "ref")  # n-step rows change learning
-    assert one_step["status"] == "completed"

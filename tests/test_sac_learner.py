@@ -168,12 +168,19 @@ def test_learner_process_gives_the_inline_numbers(
     assert inline["eval"] == process["eval"]
 
 
+#: 3-step rows (semdp/algos/n_step.py) in epochs of 80 vector steps, which end inside the
+#: 100-step episodes: windows are pending at every checkpoint.
+N_STEP = ("algo.n_step=3", "budget.steps_per_epoch=160", "total_steps=640")
+
+
+@pytest.mark.parametrize("extra", [(), N_STEP], ids=["one-step", "n-step"])
 def test_round_loop_resumes_exactly_after_a_crash(
     tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     hosts: list[ProcessLearner], crash_in_epoch_3: Callable[[type], Callable[..., Any]],
+    extra: tuple[str, ...],
 ) -> None:
     config = functools.partial(tiny_train, "sac", *ROUNDS, "algo.learner=process",
-                               "checkpoint_every=1")
+                               "checkpoint_every=1", *extra)
     reference = run(config(), tmp_path / "ref")
     original = crash_in_epoch_3(SAC)
     with pytest.raises(RuntimeError, match="simulated crash"):
