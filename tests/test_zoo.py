@@ -13,9 +13,9 @@ from semdp.evaluation.run import check_run_dir, evaluate_run
 from semdp.evaluation.zoo import INDEX, entries, resolve
 
 ZOO = entries()
-#: One entry per method and robot (names ``<method>_<robot>_<task>_s<seed>``): a table value
-#: reproduced.
-CHECKED = sorted({tuple(name.split("_")[:2]): name for name in sorted(ZOO)}.values())
+#: One entry per method, robot and task (names ``<method>_<robot>_<task>_s<seed>``): a table
+#: value reproduced.
+CHECKED = sorted({tuple(name.split("_")[:3]): name for name in sorted(ZOO)}.values())
 
 
 def test_the_zoo_has_entries_and_each_holds_a_policy_and_its_evaluation() -> None:
@@ -67,7 +67,8 @@ def test_the_zoo_table_averages_a_methods_seeds_per_env(tmp_path: Path) -> None:
     (tmp_path / "zoo.yaml").write_text("a: r0\nb: r1\nc: r2\n")
     table = zoo_table(entry_rows(tmp_path / "zoo.yaml"))
     # mean 5, sample standard deviation sqrt(2), standard error sqrt(2) / sqrt(2) = 1
-    assert "| Ours | semdp_car_push1 | 2 | 5.00 ± 1.00 | 0.00 ± 0.00 |" in table
-    assert "| PPO Lag | semdp_car_push1 | 1 | 1.00 ± – | 0.00 ± – |" in table
-    assert ("| `a` | Ours | semdp_car_push1 | 0 | 200,000 | 4.000 ± 1.000 | 0.000 | 0 / 50 "
+    # the env option's name in the thesis' form (semdp/reporting/names.py)
+    assert "| Ours | CarPush1 | 2 | 5.00 ± 1.00 | 0.00 ± 0.00 |" in table
+    assert "| PPO Lag | CarPush1 | 1 | 1.00 ± – | 0.00 ± – |" in table
+    assert ("| `a` | Ours | CarPush1 | 0 | 200,000 | 4.000 ± 1.000 | 0.000 | 0 / 50 "
             "| 0 / 5000 |") in table

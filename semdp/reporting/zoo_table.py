@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from semdp.evaluation.zoo import INDEX, entries
+from semdp.reporting.names import env_name
 from semdp.reporting.tables import format_cell
 
 TITLE = "# Policy zoo: semdp-eval of every committed policy"
@@ -32,7 +33,7 @@ def entry_rows(index: Path = INDEX) -> list[dict[str, object]]:
         summary = recorded["eval"]
         rows.append({
             "name": name, "method": recorded.get("label", "").removesuffix(" [eval]"),
-            "env": recorded["env"], "seed": recorded["seed"],
+            "env": env_name(str(recorded["env"])), "seed": recorded["seed"],
             "env_steps": recorded["env_steps"], "return": summary["return_mean"],
             "return_std": summary["return_std"], "cost": summary["cost_mean"],
             "episodes": summary["episodes"], "with_cost": summary.get("episodes_with_cost"),
