@@ -22,6 +22,7 @@ import pytest
 import torch
 from hydra.errors import InstantiationException
 from omegaconf import DictConfig, open_dict
+from torch import nn
 
 import semdp.algos.sac as sac_module
 from semdp.algos.learner_host import ProcessLearner
@@ -76,6 +77,49 @@ def test_fused_twin_q_is_the_twin_critic() -> None:
     torch.testing.assert_close(fused(obs, act), torch.stack([q1, q2]), rtol=0, atol=1e-6)
     frozen = [p.detach() for p in fused.parameters()]
     assert not fused(obs, act, frozen).requires_grad
+
+
+def test_layer_norm_twin_q_normalises_each_networks_hidden_layers() -> None:
+    """Oracle: each of the two networks written out as Linear -> LayerNorm (its own scale and
+    shift) -> ReLU, from the fused weights."""
+    torch.manual_seed(4)
+    fused = FusedTwinQ(7, 2, (32, 16), layer_norm=True)
+    with torch.no_grad():  # away from the initial scale 1 / shift 0, so that they matter
+        for p in [*fused.ln_scales, *fused.ln_shifts]:
+            p.add_(0.3 * torch.randn_like(p))
+    obs, act = torch.randn(9, 7), torch.randn(9, 2)
+    x = torch.cat([obs, act], dim=-1)
+    expected = []
+    for k in range(2):
+        layer_norm = [nn.LayerNorm(h) for h in (32, 16)]
+        with torch.no_grad():
+            for i, ln in enumerate(layer_norm):
+                ln.weight.copy_(fused.ln_scales[i][k, 0])
+                ln.bias.copy_(fused.ln_shifts[i][k, 0])
+        h = x @ fused.w_in[:, 32 * k:32 * (k + 1)] + fused.b_in[32 * k:32 * (k + 1)]
+        h = torch.relu(layer_norm[0](h))
+        h = torch.relu(layer_norm[1](h @ fused.weights[0][k] + fused.biases[0][k]))
+        expected.append((h @ fused.weights[1][k] + fused.biases[1][k]).squeeze(-1))
+    torch.testing.assert_close(fused(obs, act), torch.stack(expected), rtol=0, atol=1e-5)
+    assert len(list(fused.parameters())) == len(list(FusedTwinQ(7, 2, (32, 16)).parameters())) + 4
+    # at the initial scale and shift it is not the plain critic
+    torch.manual_seed(4)
+    plain, normed = FusedTwinQ(7, 2, (32, 16)), FusedTwinQ(7, 2, (32, 16), layer_norm=True)
+    assert not torch.allclose(plain(obs, act), normed(obs, act))
+
+
+def test_sac_trains_layer_norm_critics_through_the_learner() -> None:
+    settings = LearnerSettings(5, 2, (8, 8), 3e-4, 1e-3, 0.99, 0.005, 16, 2, 1.0, True, -2.0,
+                               1e-3, 0, critic_layer_norm=True)
+    storage = {"obs": torch.randn(64, 5), "next_obs": torch.randn(64, 5),
+               "actions": torch.rand(64, 2) * 2 - 1, "rewards": torch.randn(64),
+               "terminated": torch.zeros(64)}
+    learner = SACLearner(settings, storage)
+    before = [p.detach().clone() for p in learner.critic.ln_scales]
+    learner.run(4, 64)
+    assert all(not torch.equal(b, p) for b, p in zip(before, learner.critic.ln_scales,
+                                                     strict=True))
+    assert learner.critic_target.layer_norm
 
 
 def test_the_actors_sample_is_its_forward_action_with_the_same_draw() -> None:

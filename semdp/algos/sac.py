@@ -73,6 +73,8 @@ class SAC(Algorithm):
         learner_threads: torch threads of the learner process.
         n_step: rewards summed per replay row (:mod:`semdp.algos.n_step`; None or 1: one-step
             transitions, SAC as published).
+        critic_layer_norm: LayerNorm before every hidden ReLU of the critics
+            (:class:`~semdp.algos.twin_q.FusedTwinQ`; DroQ's critic without dropout; None: off).
     """
 
     extra_columns = ("loss_q", "loss_pi", "alpha", "q_mean", "entropy")
@@ -102,6 +104,7 @@ class SAC(Algorithm):
         sync_every: int = 64,
         learner_threads: int = 1,
         n_step: int | None = None,
+        critic_layer_norm: bool | None = None,
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
         if learner not in LEARNERS:
@@ -149,6 +152,7 @@ class SAC(Algorithm):
             policy_steps=policy_steps, alpha=alpha,
             autotune=autotune, target_entropy=self.target_entropy, alpha_lr=alpha_lr,
             seed=self.seed + LEARNER_SEED_OFFSET, n_step=n_step,
+            critic_layer_norm=bool(critic_layer_norm),
         )
         #: n-step rows (None: one-step transitions, stored as they come).
         self._n_step = NStepReturns(n_step, gamma, self.num_envs) if n_step > 1 else None

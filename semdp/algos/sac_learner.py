@@ -52,6 +52,7 @@ class LearnerSettings:
     seed: int
     policy_steps: int = 0  # actor updates each policy_frequency critic updates (0: as many)
     n_step: int = 1  # > 1: rows are n-step returns bootstrapping gamma^horizon ahead
+    critic_layer_norm: bool = False  # LayerNorm before the critics' hidden ReLUs
 
 
 def networks_state(owner: Any) -> dict[str, Any]:
@@ -91,7 +92,7 @@ class SACLearner:
         hidden = tuple(s.hidden_sizes)
         self.actor = actor if actor is not None else SquashedGaussianActor(
             s.obs_dim, s.act_dim, hidden)
-        self.critic = FusedTwinQ(s.obs_dim, s.act_dim, hidden)
+        self.critic = FusedTwinQ(s.obs_dim, s.act_dim, hidden, layer_norm=s.critic_layer_norm)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         # Adam with the fused CPU kernel, called without the optimiser's per-step overhead
         self.actor_optimizer = LeanAdam(self.actor.parameters(), s.actor_lr)
