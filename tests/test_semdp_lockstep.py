@@ -92,6 +92,32 @@ def test_numpy_mlp_matches_the_torch_follower_policy() -> None:
     np.testing.assert_allclose(mlp(x.copy()), expected, rtol=1e-5, atol=1e-5)
 
 
+def test_batched_network_inputs_are_each_followers_own_bit_for_bit() -> None:
+    """The stacked inputs (one array operation per part) against each follower's
+    ``network_input``, on random observations, positions, headings and targets."""
+    followers = [PolicyFollower("point.pt") for _ in range(4)]
+    obs_slices = {"accelerometer": slice(0, 3), "velocimeter": slice(3, 6),
+                  "gyro": slice(6, 9), "magnetometer": slice(9, 12), "lidar": slice(12, 28)}
+    rng = np.random.default_rng(5)
+    mean, std = rng.normal(size=14).astype(np.float32), rng.uniform(0.5, 2, 14).astype(np.float32)
+    for f in followers:  # the committed follower has none: normalise and clip as one that has
+        f.bind(obs_slices)
+        f.obs_mean, f.obs_std, f.obs_clip = mean, std, 2.5
+    batch = FollowerBatch(followers)
+    for _ in range(50):
+        inputs = [(rng.normal(scale=3.0, size=28), rng.uniform(-2, 2, size=2),
+                   float(rng.uniform(-10, 10)), rng.uniform(-2, 2, size=2)) for _ in range(4)]
+        indices = [3, 0, 2] if rng.random() < 0.5 else [0, 1, 2, 3]
+        chosen = [inputs[i] for i in indices]
+        expected = np.stack([followers[i].network_input(*args)
+                             for i, args in zip(indices, chosen, strict=True)])
+        got = batch.network_inputs(indices, chosen)
+        assert got.dtype == expected.dtype == np.float32
+        np.testing.assert_array_equal(got, expected)
+    with pytest.raises(RuntimeError, match="bind"):
+        FollowerBatch([PolicyFollower("point.pt")]).network_inputs([0], inputs[:1])
+
+
 def test_follower_batch_falls_back_to_one_by_one_for_mixed_followers() -> None:
     mixed = FollowerBatch([PolicyFollower("point.pt"), ProportionalFollower(gain=8.0)])
     assert not mixed.batched

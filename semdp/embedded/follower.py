@@ -110,6 +110,13 @@ class PolicyFollower:
             )
         self._slices = [obs_slices[name] for name in self.sensor_slices]
 
+    def sensor_columns(self) -> np.ndarray:
+        """Indices of the sensor entries in the env's flat observation, in input order (what
+        :meth:`network_input` concatenates)."""
+        if self._slices is None:
+            raise RuntimeError("PolicyFollower.bind(env.obs_slices) must be called first")
+        return np.concatenate([np.arange(s.start, s.stop, s.step or 1) for s in self._slices])
+
     def network_input(
         self, obs: np.ndarray, robot_position: np.ndarray, robot_heading: float, target: np.ndarray
     ) -> np.ndarray:

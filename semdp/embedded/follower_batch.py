@@ -8,6 +8,7 @@ that share weights are evaluated together, in NumPy, on the stacked inputs.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -76,6 +77,7 @@ class FollowerBatch:
         if not self.followers:
             raise ValueError("FollowerBatch needs at least one follower")
         self.mlp: NumpyMLP | None = None
+        self._columns: np.ndarray | None = None
         if all(isinstance(f, PolicyFollower) for f in self.followers):
             kinds = {(str(f.weights), tuple(f.sensor_slices)) for f in self.followers}
             if len(kinds) == 1:
@@ -90,6 +92,32 @@ class FollowerBatch:
         """Low-level actions of the followers ``indices`` for their ``inputs`` (same order)."""
         if self.mlp is None:
             return [self.followers[i].act(*args) for i, args in zip(indices, inputs, strict=True)]
-        x = np.stack([self.followers[i].network_input(*args)  # type: ignore[union-attr]
-                      for i, args in zip(indices, inputs, strict=True)]).astype(np.float32)
-        return [row.copy() for row in self.mlp(x)]
+        return [row.copy() for row in self.mlp(self.network_inputs(indices, inputs))]
+
+    def network_inputs(self, indices: Sequence[int],
+                       inputs: Sequence[FollowerInputs]) -> np.ndarray:
+        """The batched followers' inputs, stacked (row ``j``: :meth:`PolicyFollower.network_input`
+        of follower ``indices[j]`` for ``inputs[j]``, the same floats): the sensor columns, the
+        ego-frame goal vector and the normalisation as one array operation each."""
+        first = self.followers[indices[0]]
+        assert isinstance(first, PolicyFollower)
+        columns = self._sensor_columns(first)
+        obs = np.stack([args[0] for args in inputs])
+        positions = np.stack([np.asarray(args[1], dtype=np.float64) for args in inputs])
+        targets = np.stack([np.asarray(args[3], dtype=np.float64) for args in inputs])
+        cos = np.array([math.cos(args[2]) for args in inputs])
+        sin = np.array([math.sin(args[2]) for args in inputs])
+        error = targets - positions  # world frame; world_to_ego's rotation, row by row
+        ego = np.stack([cos * error[:, 0] + sin * error[:, 1],
+                        -sin * error[:, 0] + cos * error[:, 1]], axis=1)
+        x = np.concatenate([obs[:, columns].astype(np.float32), ego.astype(np.float32)], axis=1)
+        return np.clip((x - first.obs_mean) / first.obs_std, -first.obs_clip, first.obs_clip)
+
+    def _sensor_columns(self, follower: PolicyFollower) -> np.ndarray:
+        """The columns of an env's flat observation that make up the followers' sensors."""
+        if self._columns is None:
+            columns = [f.sensor_columns() for f in self.followers]  # type: ignore[union-attr]
+            if any(not np.array_equal(c, columns[0]) for c in columns):
+                raise ValueError("batched followers must read the same observation columns")
+            self._columns = follower.sensor_columns()
+        return self._columns
