@@ -41,11 +41,14 @@ def detour_guess(
     perp = np.array([-direction[1], direction[0]])
     via_index: list[int] = []
     via_point: list[np.ndarray] = []
-    for centre, radius in zip(centres, clearances, strict=True):
-        rel = positions - centre
-        dist = np.sqrt(np.einsum("nk,nk->n", rel, rel))
-        k = int(np.argmin(dist))
-        if dist[k] >= radius * inflate or k == n - 1 or k in via_index:
+    # every obstacle's distance to every waypoint at once; its nearest waypoint and that distance
+    rel = positions[None, :, :] - np.asarray(centres)[:, None, :]
+    dist = np.sqrt(rel[:, :, 0] * rel[:, :, 0] + rel[:, :, 1] * rel[:, :, 1])
+    nearest = dist.argmin(axis=1)
+    nearest_dist = dist[np.arange(len(nearest)), nearest]
+    for centre, radius, k, d in zip(centres, clearances, nearest.tolist(),
+                                    nearest_dist.tolist(), strict=True):
+        if d >= radius * inflate or k == n - 1 or k in via_index:
             continue
         offset = float(centre @ perp)
         side = -1.0 if offset > 0.0 else 1.0
