@@ -14,15 +14,14 @@ def _one_at_a_time(prior: GPPrior, goal: np.ndarray, centres: np.ndarray,
                    clearances: np.ndarray, reach: float, inflate: float = 1.15) -> np.ndarray:
     """The guess as its docstring states it, obstacle by obstacle (the form before the
     obstacles were handled together)."""
-    distance = float(np.hypot(goal[0], goal[1]))
-    target = goal if distance <= reach else goal * (reach / distance)
-    z = prior.goal_map @ target
-    if len(centres) == 0 or distance == 0.0:
-        return z
+    straight = detour_guess(prior, goal, np.zeros((0, 2)), np.zeros(0), reach=reach)
+    if len(centres) == 0 or not np.any(goal):
+        return straight
+    target = goal * min(1.0, reach / float(np.hypot(goal[0], goal[1])))
     n = prior.n_waypoints - 1
-    positions = z[: 2 * n].reshape(n, 2)
-    direction = target / max(float(np.hypot(target[0], target[1])), 1e-12)
-    perp = np.array([-direction[1], direction[0]])
+    positions = straight[: 2 * n].reshape(n, 2)
+    unit = target / max(float(np.hypot(target[0], target[1])), 1e-12)
+    left = np.array([-unit[1], unit[0]])
     rows: list[int] = []
     points: list[np.ndarray] = []
     for centre, radius in zip(centres, clearances, strict=True):
@@ -31,12 +30,12 @@ def _one_at_a_time(prior: GPPrior, goal: np.ndarray, centres: np.ndarray,
         k = int(np.argmin(dist))
         if dist[k] >= radius * inflate or k == n - 1 or k in rows:
             continue
-        side = -1.0 if float(centre @ perp) > 0.0 else 1.0
-        foot = centre + ((positions[k] - centre) @ direction) * direction
+        side = -1.0 if float(centre @ left) > 0.0 else 1.0
+        foot = centre + ((positions[k] - centre) @ unit) * unit
         rows.append(k)
-        points.append(foot + side * perp * radius * inflate)
+        points.append(foot + side * left * radius * inflate)
     if not rows:
-        return z
+        return straight
     cols = np.ravel([[2 * k, 2 * k + 1] for k in [*rows, n - 1]])
     select = prior.hessian_inv[:, cols]
     return select @ sla.solve(select[cols], np.concatenate([*points, target]), assume_a="pos")
