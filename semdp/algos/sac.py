@@ -75,6 +75,9 @@ class SAC(Algorithm):
             transitions, SAC as published).
         critic_layer_norm: LayerNorm before every hidden ReLU of the critics
             (:class:`~semdp.algos.twin_q.FusedTwinQ`; DroQ's critic without dropout; None: off).
+        gradients: how the learner computes its gradients: ``autograd`` (None; the plain
+            path) or ``written`` (:mod:`semdp.algos.fast.sac_written`: autograd's floats bit for
+            bit without its graph, ~20 % less time per update; ReLU networks, no LayerNorm).
     """
 
     extra_columns = ("loss_q", "loss_pi", "alpha", "q_mean", "entropy")
@@ -105,6 +108,7 @@ class SAC(Algorithm):
         learner_threads: int = 1,
         n_step: int | None = None,
         critic_layer_norm: bool | None = None,
+        gradients: str | None = None,
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
         if learner not in LEARNERS:
@@ -152,7 +156,7 @@ class SAC(Algorithm):
             policy_steps=policy_steps, alpha=alpha,
             autotune=autotune, target_entropy=self.target_entropy, alpha_lr=alpha_lr,
             seed=self.seed + LEARNER_SEED_OFFSET, n_step=n_step,
-            critic_layer_norm=bool(critic_layer_norm),
+            critic_layer_norm=bool(critic_layer_norm), gradients=gradients or "autograd",
         )
         #: n-step rows (None: one-step transitions, stored as they come).
         self._n_step = NStepReturns(n_step, gamma, self.num_envs) if n_step > 1 else None

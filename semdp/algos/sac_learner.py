@@ -24,12 +24,16 @@ from typing import Any
 import torch
 from torch import nn
 
+from semdp.algos.fast import sac_written
 from semdp.algos.twin_q import FusedTwinQ
 from semdp.common.networks import SquashedGaussianActor
 from semdp.common.optim import LeanAdam
 
 #: Log columns a round of updates reports (``progress.csv`` columns of SAC).
 LOG_KEYS: tuple[str, ...] = ("loss_q", "q_mean", "loss_pi", "entropy")
+#: How the learner computes its gradients: autograd, or written out
+#: (:mod:`semdp.algos.fast.sac_written`: the same floats without the graph).
+GRADIENTS: tuple[str, ...] = ("autograd", "written")
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,7 @@ class LearnerSettings:
     policy_steps: int = 0  # actor updates each policy_frequency critic updates (0: as many)
     n_step: int = 1  # > 1: rows are n-step returns bootstrapping gamma^horizon ahead
     critic_layer_norm: bool = False  # LayerNorm before the critics' hidden ReLUs
+    gradients: str = "autograd"  # autograd | written (semdp.algos.fast.sac_written)
 
 
 def networks_state(owner: Any) -> dict[str, Any]:
@@ -87,11 +92,15 @@ class SACLearner:
         actor: SquashedGaussianActor | None = None,
     ) -> None:
         s = settings
+        if s.gradients not in GRADIENTS:
+            raise ValueError(f"gradients must be one of {list(GRADIENTS)}, got {s.gradients!r}")
         self.settings = s
         self.storage = storage
         hidden = tuple(s.hidden_sizes)
         self.actor = actor if actor is not None else SquashedGaussianActor(
             s.obs_dim, s.act_dim, hidden)
+        if s.gradients == "written":
+            sac_written.check_supported(self.actor, s.critic_layer_norm)
         self.critic = FusedTwinQ(s.obs_dim, s.act_dim, hidden, layer_norm=s.critic_layer_norm)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         # Adam with the fused CPU kernel, called without the optimiser's per-step overhead
@@ -105,6 +114,10 @@ class SACLearner:
         self._target_params = list(self.critic_target.parameters())
 
     # ----------------------------------------------------------------- the update
+    def _noise(self, batch: int) -> torch.Tensor:
+        """The reparameterisation noise of one policy sample (this learner's generator)."""
+        return torch.randn((batch, self.settings.act_dim), generator=self.generator)
+
     def _policy(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """A reparameterised sample of the squashed policy and its log-probability (the
         computation of :class:`SquashedGaussianActor`, with this learner's noise)."""
@@ -112,7 +125,7 @@ class SACLearner:
         mean, raw_log_std = actor.net(obs).chunk(2, dim=-1)
         span = actor.LOG_STD_MAX - actor.LOG_STD_MIN
         log_std = actor.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
-        noise = torch.randn(mean.shape, generator=self.generator)
+        noise = self._noise(obs.shape[0])
         pre_tanh = mean + log_std.exp() * noise
         correction = 2.0 * (math.log(2.0) - pre_tanh - nn.functional.softplus(-2.0 * pre_tanh))
         log_prob = (-0.5 * noise.square() - log_std - 0.5 * math.log(2.0 * math.pi)
@@ -138,6 +151,17 @@ class SACLearner:
                 target = rewards + discount * (1.0 - terminated) * soft_v
             else:
                 target = rewards + s.gamma * (1.0 - terminated) * soft_v
+        if s.gradients == "written":
+            self._update_written(obs, actions, target, logs)
+        else:
+            self._update_autograd(obs, actions, target, logs)
+        with torch.no_grad():
+            torch._foreach_lerp_(self._target_params, self._critic_params, s.tau)
+
+    def _update_autograd(self, obs: torch.Tensor, actions: torch.Tensor, target: torch.Tensor,
+                         logs: dict[str, list[torch.Tensor]]) -> None:
+        """The critic step and the delayed actor and temperature steps, gradients by autograd."""
+        s = self.settings
         q = self.critic(obs, actions, self._critic_params)
         loss_q = (q - target).square().mean(1).sum()
         self.critic_optimizer.zero_grad(set_to_none=True)
@@ -162,8 +186,32 @@ class SACLearner:
                     self.alpha_optimizer.step()
             logs["loss_pi"].append(loss_pi.detach())
             logs["entropy"].append(-logp.detach().mean())
-        with torch.no_grad():
-            torch._foreach_lerp_(self._target_params, self._critic_params, s.tau)
+
+    @torch.no_grad()
+    def _update_written(self, obs: torch.Tensor, actions: torch.Tensor, target: torch.Tensor,
+                       logs: dict[str, list[torch.Tensor]]) -> None:
+        """:meth:`_update_autograd` with the gradients written out
+        (:mod:`semdp.algos.fast.sac_written`): the same floats, no graph."""
+        s = self.settings
+        hidden = self.critic.hidden
+        loss_q, q, grads = sac_written.critic_loss_grads(
+            self._critic_params, hidden, obs, actions, target)
+        self.critic_optimizer.apply_gradients(grads)
+        self.updates += 1
+        logs["loss_q"].append(loss_q)
+        logs["q_mean"].append(q[0].mean())
+        if self.updates % s.policy_frequency == 0:
+            for _ in range(s.policy_steps or s.policy_frequency):
+                alpha = self.log_alpha.exp()
+                loss_pi, logp, grads = sac_written.actor_loss_grads(
+                    self.actor, self._critic_params, hidden, obs,
+                    self._noise(obs.shape[0]), alpha)
+                self.actor_optimizer.apply_gradients(grads)
+                if s.autotune:
+                    self.alpha_optimizer.apply_gradients(
+                        [sac_written.alpha_loss_grad(logp, s.target_entropy)])
+            logs["loss_pi"].append(loss_pi)
+            logs["entropy"].append(-logp.mean())
 
     def run(self, n_updates: int, size: int) -> dict[str, Any]:
         """``n_updates`` updates on the first ``size`` replay rows; their logs as floats, the

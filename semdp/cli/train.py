@@ -69,15 +69,22 @@ def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
 #: ``algo.steps_per_epoch``, ...; ``robot``: into ``env``; ``preset``: the per-preset budget
 #: tables of configs saved before conf/budget/ held them).
 _NOT_RUN = ("resume", "budget", "robot", "preset")
+#: Keys that choose how a run of an algorithm (``algo._target_``) computes, not what: kernels
+#: that give the same floats (their tests compare them bit for bit), so a run saved with the
+#: other choice continues unchanged.
+_SAME_NUMBERS: dict[str, tuple[str, ...]] = {"semdp.algos.SAC": ("algo.gradients",)}
 
 
 def _config_differences(saved: DictConfig, wanted: DictConfig) -> list[str]:
-    """Dotted keys whose resolved values differ between two run configs (:data:`_NOT_RUN`
-    aside)."""
+    """Dotted keys whose resolved values differ between two run configs (:data:`_NOT_RUN` and
+    :data:`_SAME_NUMBERS` aside)."""
     a = _flat(OmegaConf.to_container(saved, resolve=True))
     b = _flat(OmegaConf.to_container(wanted, resolve=True))
+    neutral = _SAME_NUMBERS.get(a.get("algo._target_"), ()) if (
+        a.get("algo._target_") == b.get("algo._target_")) else ()
     return sorted(k for k in a.keys() | b.keys()
-                  if k.split(".", 1)[0] not in _NOT_RUN and a.get(k) != b.get(k))
+                  if k.split(".", 1)[0] not in _NOT_RUN and k not in neutral
+                  and a.get(k) != b.get(k))
 
 
 def _auto_resume(cfg: DictConfig, run_dir: Path) -> str | dict[str, Any] | None:

@@ -208,6 +208,27 @@ class LeanAdam(_OneGroupAdam):
         grads = [p.grad for p in self._params]
         if any(g is None for g in grads):
             raise RuntimeError("LeanAdam needs a gradient for every parameter")
+        self._fused_step(grads)
+
+    def apply_gradients(self, grads: Sequence[torch.Tensor]) -> None:
+        """:meth:`step` with the gradients given in parameter order instead of read from
+        ``.grad``, and without the optimiser's step hooks (for callers that run under
+        ``torch.no_grad`` and compute the gradients themselves, e.g. the SAC learner's
+        ``manual`` kernel): the same arithmetic."""
+        if self._state_lists is None:
+            for p, g in zip(self._params, grads, strict=True):
+                p.grad = g
+            self.step()
+            for p in self._params:
+                p.grad = None
+            return
+        if len(grads) != len(self._params):
+            raise ValueError(f"{len(self._params)} gradients expected, got {len(grads)}")
+        self._fused_step(list(grads))
+
+    def _fused_step(self, grads: list[torch.Tensor]) -> None:
+        """The two operations of ``torch.optim.Adam(fused=True)``'s step on the cached state."""
+        assert self._state_lists is not None
         exp_avgs, exp_avg_sqs, steps = self._state_lists
         group = self.param_groups[0]
         beta1, beta2 = group["betas"]

@@ -1,4 +1,6 @@
-"""Speed-ups of the on-policy algorithms, each behind one of two seams and none changing a number.
+"""Speed-ups of the on-policy algorithms, each behind one of two seams and none changing a number
+(and SAC's written-out gradients, :mod:`~semdp.algos.fast.sac_written`, behind SAC's
+``gradients`` argument: autograd's floats bit for bit).
 
 The plain path (:mod:`semdp.algos.on_policy`, :mod:`semdp.algos.rollout`, :mod:`semdp.algos.ppo`)
 runs everything in one process with autograd. Two constructor arguments of the on-policy
