@@ -19,6 +19,7 @@ from solvers.planner import (
     plan_batch,
     random_problems,
 )
+from solvers.planner.backends.lm import LMBackend
 from solvers.planner.geometry import point_distances, segment_distances
 from solvers.planner.problem import build_gp_prior, problem_keys
 
@@ -489,3 +490,34 @@ def test_pickled_planner_drops_compiled_solvers_and_keeps_its_memory() -> None:
     assert clone.settings == planner.settings
     for got, want in zip(clone.memory.previous, planner.memory.previous, strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+def test_lm_iterates_say_whether_they_passed_and_the_planner_trusts_them(monkeypatch) -> None:
+    """``Iterate.passed`` from the LM backend equals the certificate's check of its plan, and the
+    planner that skips re-checking such plans before deciding on a rescue returns the plans of
+    one that re-checks every plan (random problems, some failing, with the IPOPT rescue)."""
+    rng = np.random.default_rng(7)
+    problems = []
+    for _ in range(60):
+        m = int(rng.integers(0, 6))
+        obstacles = np.column_stack([rng.uniform(-0.5, 2.5, (m, 2)), rng.uniform(0.0, 0.3, m)])
+        problems.append((rng.uniform(-0.2, 0.2, 2), rng.uniform(0.5, 2.5, 2), obstacles))
+    planner = SafeTrajectoryPlanner(backend=LMSettings(margin=0.0), rescue_backend="ipopt")
+    certificate = planner.context.certificate
+    seen = {True: 0, False: 0}
+    for start, subgoal, obstacles in problems:
+        prep = planner.context.prepare(start, subgoal, obstacles,
+                                       reach=planner.solver.selection_reach)
+        iterate = planner.solver.solve(prep, None)
+        assert iterate.passed == certificate.passes(prep, iterate.z)
+        seen[iterate.passed] += 1
+    assert seen[True] and seen[False]
+    trusted = [planner.plan(*p) for p in problems]
+    original = LMBackend.repair
+    monkeypatch.setattr(LMBackend, "repair", lambda self, prep, plan: dataclasses.replace(
+        original(self, prep, plan), passed=False))
+    rechecked = SafeTrajectoryPlanner(backend=LMSettings(margin=0.0), rescue_backend="ipopt")
+    for a, (start, subgoal, obstacles) in zip(trusted, problems, strict=True):
+        b = rechecked.plan(start, subgoal, obstacles)
+        assert np.array_equal(a.waypoints, b.waypoints)
+        assert (a.status, a.fallback, a.rescued) == (b.status, b.fallback, b.rescued)

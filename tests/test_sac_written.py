@@ -16,7 +16,7 @@ from semdp.algos.fast import sac_written
 from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
 from semdp.algos.twin_q import FusedTwinQ
 from semdp.cli.train import _config_differences, build_algorithm
-from semdp.common.networks import SquashedGaussianActor
+from semdp.common.networks import SquashedGaussianActor, forward_mlp, mlp
 from semdp.common.optim import LeanAdam
 
 
@@ -170,3 +170,12 @@ def test_resume_ignores_sacs_gradient_choice_only(tiny_train: Callable[..., Dict
     ppo = tiny_train("ppo_lag")
     assert _config_differences(ppo, tiny_train("ppo_lag", "algo.gradients=autograd")) == [
         "algo.gradients"]
+
+
+@pytest.mark.parametrize("activation", ["relu", "tanh", "elu"])
+def test_forward_mlp_is_the_modules_forward(activation: str) -> None:
+    """The direct calls of forward_mlp (what the actor collects with) against the modules."""
+    torch.manual_seed(2)
+    net = mlp(6, (16, 8), 3, activation)
+    x = torch.randn(10, 6) * 2.0
+    assert torch.equal(forward_mlp(net, x), net(x))

@@ -45,14 +45,16 @@ def mlp(
 
 
 def forward_mlp(net: nn.Sequential, x: torch.Tensor) -> torch.Tensor:
-    """``net(x)`` calling each layer's function directly: the operations of ``Linear`` and
-    ``Tanh``'s ``forward`` (other layers are called as modules), without the per-module call
-    overhead that costs more than these small layers' arithmetic."""
+    """``net(x)`` calling each layer's function directly: the operations of ``Linear``'s,
+    ``Tanh``'s and ``ReLU``'s ``forward`` (other layers are called as modules), without the
+    per-module call overhead that costs more than these small layers' arithmetic."""
     for layer in net:
         if type(layer) is nn.Linear:
             x = F.linear(x, layer.weight, layer.bias)
         elif type(layer) is nn.Tanh:
             x = torch.tanh(x)
+        elif type(layer) is nn.ReLU and not layer.inplace:
+            x = torch.relu(x)
         else:
             x = layer(x)
     return x
@@ -139,7 +141,7 @@ class SquashedGaussianActor(nn.Module):
     def sample(self, obs: torch.Tensor) -> torch.Tensor:
         """The action of :meth:`forward` without its log-probability: the same random draw and
         the same floats, for collecting steps (half the operator calls)."""
-        mean, raw_log_std = self.net(obs).chunk(2, dim=-1)
+        mean, raw_log_std = forward_mlp(self.net, obs).chunk(2, dim=-1)
         span = self.LOG_STD_MAX - self.LOG_STD_MIN
         log_std = self.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
         # Normal.rsample: loc + eps * scale, eps from normal_() on a fresh tensor

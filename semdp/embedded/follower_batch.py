@@ -102,16 +102,20 @@ class FollowerBatch:
         first = self.followers[indices[0]]
         assert isinstance(first, PolicyFollower)
         columns = self._sensor_columns(first)
-        obs = np.stack([args[0] for args in inputs])
-        positions = np.stack([np.asarray(args[1], dtype=np.float64) for args in inputs])
-        targets = np.stack([np.asarray(args[3], dtype=np.float64) for args in inputs])
+        # rows stacked by np.array (the arrays of np.stack, without its per-call checks)
+        obs = np.array([args[0] for args in inputs])
+        positions = np.array([args[1] for args in inputs], dtype=np.float64)
+        targets = np.array([args[3] for args in inputs], dtype=np.float64)
         cos = np.array([math.cos(args[2]) for args in inputs])
         sin = np.array([math.sin(args[2]) for args in inputs])
         error = targets - positions  # world frame; world_to_ego's rotation, row by row
-        ego = np.stack([cos * error[:, 0] + sin * error[:, 1],
-                        -sin * error[:, 0] + cos * error[:, 1]], axis=1)
-        x = np.concatenate([obs[:, columns].astype(np.float32), ego.astype(np.float32)], axis=1)
-        return np.clip((x - first.obs_mean) / first.obs_std, -first.obs_clip, first.obs_clip)
+        x = np.empty((len(inputs), len(columns) + 2), dtype=np.float32)
+        x[:, :len(columns)] = obs[:, columns]
+        x[:, -2] = cos * error[:, 0] + sin * error[:, 1]
+        x[:, -1] = -sin * error[:, 0] + cos * error[:, 1]
+        x = (x - first.obs_mean) / first.obs_std
+        # np.clip's operation (NaN kept) without its wrappers
+        return np.minimum(np.maximum(x, -first.obs_clip), first.obs_clip)
 
     def _sensor_columns(self, follower: PolicyFollower) -> np.ndarray:
         """The columns of an env's flat observation that make up the followers' sensors."""

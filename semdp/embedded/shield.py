@@ -372,8 +372,8 @@ class SafetyShield:
         assert model is not None
         self.stats.steps += 1
         body = base.body
-        state = RobotState(body.position.x, body.position.y, body.velocity.x, body.velocity.y,
-                           body.angle, body.angular_velocity)
+        (x, y), (vx, vy) = body.position, body.velocity
+        state = RobotState(x, y, vx, vy, body.angle, body.angular_velocity)
         reach = model.stopping_reach(state) + 0.1
         if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
             return action  # nothing any lit bin could hold is within reach: no reconstruction

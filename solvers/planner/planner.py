@@ -206,7 +206,8 @@ class SafeTrajectoryPlanner:
             logger.warning("planner backend %s failed: %r", self.backend, error)
             plan = Iterate(np.zeros(self.prior.n_var), f"error: {error}", 0, failed=True)
         certificate = self.context.certificate
-        if self.rescue_solver is not None and (plan.failed or not certificate.passes(prep, plan.z)):
+        if self.rescue_solver is not None and (
+                plan.failed or not (plan.passed or certificate.passes(prep, plan.z))):
             plan = self._rescue(prep, plan)
         result = certificate.certify(prep, plan, backend=self.backend, tic=tic)
         result = dataclasses.replace(

@@ -25,6 +25,7 @@ by :mod:`solvers.planner.backends.banded_least_squares` (one banded Cholesky sol
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -296,11 +297,11 @@ class LMBackend:
         """
         passes = self.context.certificate.passes
         if passes(prep, plan.z):
-            return plan
+            return dataclasses.replace(plan, passed=True)
         for theta in np.arange(0.9, 0.05, -0.1):
             if passes(prep, theta * plan.z):
                 return Iterate(theta * plan.z, f"solved_shortened(theta={theta:.1f})",
-                               plan.iterations, plan.multiplier)
+                               plan.iterations, plan.multiplier, passed=True)
         return plan
 
     def candidates(self, prep: PreparedProblem, warm: np.ndarray | None) -> list[np.ndarray]:

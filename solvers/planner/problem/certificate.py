@@ -38,6 +38,8 @@ class Iterate:
         multiplier: LM's penalty multiplier lambda (``nan`` for the other backends).
         failed: The backend raised; ``z`` is meaningless and the planner falls back.
         rescued: ``z`` is the rescue backend's plan, which passed the certificate.
+        passed: the backend checked ``z`` with :meth:`Certificate.passes` and it held (the
+            planner then does not check it again before deciding on a rescue).
     """
 
     z: np.ndarray
@@ -46,6 +48,7 @@ class Iterate:
     multiplier: float = float("nan")
     failed: bool = False
     rescued: bool = False
+    passed: bool = False
 
 
 @dataclass(frozen=True)
