@@ -55,10 +55,10 @@ def obstacles_from_lidar(
     lidar = np.asarray(lidar, dtype=np.float64)
     if lidar.shape != (BINS,):
         raise ValueError(f"lidar must have shape ({BINS},), got {lidar.shape}")
-    if not np.all(np.isfinite(lidar)) or lidar.min() < 0.0 or lidar.max() > 1.0:
+    if not np.isfinite(lidar).all() or lidar.min() < 0.0 or lidar.max() > 1.0:
         raise ValueError(f"lidar readings must be finite and in [0, 1], got {lidar}")
     position = np.asarray(robot_position, dtype=np.float64).reshape(2)
-    if not np.all(np.isfinite(position)) or not math.isfinite(robot_heading):
+    if not np.isfinite(position).all() or not math.isfinite(robot_heading):
         raise ValueError("robot_position and robot_heading must be finite")
     if not max_dist > 0:
         raise ValueError(f"max_dist must be positive, got {max_dist}")

@@ -69,14 +69,14 @@ class Certificate:
 
     def passes(self, prep: PreparedProblem, z: np.ndarray) -> bool:
         """Each waypoint (segment) keeps its required distance to every obstacle."""
-        if not np.all(np.isfinite(z)):
+        if not np.isfinite(z).all():
             return False
         if len(prep.centres) == 0:
             return True
         positions, _ = split(z, self.n_waypoints)
         distances = (segment_distances(positions, prep.centres) if self.continuous
                      else point_distances(positions, prep.centres))
-        return bool(np.all(distances >= prep.required[None, :] - CERTIFICATE_TOLERANCE))
+        return bool((distances >= prep.required[None, :] - CERTIFICATE_TOLERANCE).all())
 
     def clear_of(
         self, prep: PreparedProblem, z: np.ndarray, sel: np.ndarray, need: np.ndarray
@@ -104,7 +104,7 @@ class Certificate:
         """
         z = plan.z
         status = plan.status
-        fallback = plan.failed or not np.all(np.isfinite(z))
+        fallback = plan.failed or not np.isfinite(z).all()
         if fallback:
             z = np.zeros(4 * (self.n_waypoints - 1))
             status = f"fallback: {plan.status}"
@@ -117,7 +117,7 @@ class Certificate:
             segment = segment_distances(positions, prep.centres)
             checked = segment if self.continuous else point
             floor = CERTIFICATE_TOLERANCE
-            if not fallback and not np.all(checked >= prep.required[None, :] - floor):
+            if not fallback and not (checked >= prep.required[None, :] - floor).all():
                 fallback = True
                 status = f"fallback: {plan.status}: plan failed the clearance certificate"
                 positions[:] = 0.0
@@ -125,9 +125,9 @@ class Certificate:
                 point = np.broadcast_to(prep.start_distances, point.shape)
                 segment = np.broadcast_to(prep.start_distances, segment.shape)
                 checked = segment if self.continuous else point
-            min_clear = float(np.min(point - radii[None, :]))
-            min_cont = float(np.min(segment - radii[None, :]))
-            feasible = bool(np.all(checked >= prep.clearances[None, :] - floor))
+            min_clear = float((point - radii[None, :]).min())
+            min_cont = float((segment - radii[None, :]).min())
+            feasible = bool((checked >= prep.clearances[None, :] - floor).all())
         gap = positions[-1] - prep.goal
         objective = float(gap @ gap)
         return PlanResult(

@@ -58,7 +58,7 @@ def validate_point(name: str, value: object) -> np.ndarray:
         raise ValueError(f"{name} must be a 2-vector of numbers, got {value!r}") from error
     if array.shape != (2,):
         raise ValueError(f"{name} must have shape (2,), got shape {array.shape}: {value!r}")
-    if not np.all(np.isfinite(array)):
+    if not np.isfinite(array).all():
         raise ValueError(f"{name} must be finite, got {array.tolist()}")
     return array
 
@@ -81,10 +81,10 @@ def validate_obstacles(obstacles: object) -> tuple[np.ndarray, np.ndarray]:
             "obstacles must have shape (m, 2) (centres) or (m, 3) (centres and radii), "
             f"got shape {array.shape}"
         )
-    if not np.all(np.isfinite(array)):
+    if not np.isfinite(array).all():
         raise ValueError(f"obstacles must be finite, got {array.tolist()}")
     radii = array[:, 2].copy() if array.shape[1] == 3 else np.zeros(len(array))
-    if np.any(radii < 0):
+    if (radii < 0).any():
         raise ValueError(f"obstacle radii must be >= 0, got {radii.tolist()}")
     return array[:, :2].copy(), radii
 
