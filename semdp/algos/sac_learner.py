@@ -26,7 +26,7 @@ from torch import nn
 
 from semdp.algos.fast import sac_written
 from semdp.algos.twin_q import FusedTwinQ
-from semdp.common.networks import SquashedGaussianActor
+from semdp.common.networks import SquashedGaussianActor, forward_mlp
 from semdp.common.optim import LeanAdam
 
 #: Log columns a round of updates reports (``progress.csv`` columns of SAC).
@@ -122,7 +122,7 @@ class SACLearner:
         """A reparameterised sample of the squashed policy and its log-probability (the
         computation of :class:`SquashedGaussianActor`, with this learner's noise)."""
         actor = self.actor
-        mean, raw_log_std = actor.net(obs).chunk(2, dim=-1)
+        mean, raw_log_std = forward_mlp(actor.net, obs).chunk(2, dim=-1)
         span = actor.LOG_STD_MAX - actor.LOG_STD_MIN
         log_std = actor.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
         noise = self._noise(obs.shape[0])

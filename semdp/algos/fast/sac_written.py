@@ -17,6 +17,7 @@ Covers what the main job trains: the fused twin critic without LayerNorm and the
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -30,6 +31,16 @@ from semdp.common.networks import SquashedGaussianActor
 _threshold_backward = torch.ops.aten.threshold_backward
 _tanh_backward = torch.ops.aten.tanh_backward
 _softplus_backward = torch.ops.aten.softplus_backward
+
+
+@functools.lru_cache(maxsize=16)
+def _mean_grad(rows: int, batch: int) -> torch.Tensor:
+    """The gradient of a mean over ``batch`` (of each of ``rows`` rows; ``rows=0``: of a vector)
+    as autograd's ``mean`` backward makes it: ones expanded, divided by the count. A constant,
+    kept (read only)."""
+    if rows == 0:
+        return torch.ones(()).expand(batch) / batch
+    return torch.ones(()).expand(rows).unsqueeze(1).expand(rows, batch) / batch
 
 
 def check_supported(actor: SquashedGaussianActor, layer_norm: bool) -> None:
@@ -115,8 +126,7 @@ def critic_loss_grads(
     loss = diff.square().mean(1).sum()
     batch = q.shape[1]
     # sum -> mean(1) -> square (pow's derivative) -> sub
-    g_mean = torch.ones(()).expand(2).unsqueeze(1).expand(2, batch) / batch
-    grad_q = g_mean * (2.0 * diff.pow(1.0))
+    grad_q = _mean_grad(2, batch) * (2.0 * diff.pow(1.0))
     grads, _ = twin_q_backward(params, hidden, tape, grad_q, weight_grads=True)
     assert grads is not None
     return loss, q, grads
@@ -203,7 +213,7 @@ def actor_loss_grads(
     q_pi = q.min(0)
     loss = (alpha * log_prob - q_pi.values).mean()
     batch = obs.shape[0]
-    g_mean = torch.ones(()).expand(batch) / batch
+    g_mean = _mean_grad(0, batch)
     grad_q = torch.zeros_like(q).scatter_(0, q_pi.indices.unsqueeze(0), (-g_mean).unsqueeze(0))
     _, grad_x = twin_q_backward(critic_params, hidden, q_tape, grad_q, weight_grads=False)
     assert grad_x is not None
@@ -216,5 +226,4 @@ def alpha_loss_grad(log_prob: torch.Tensor, target_entropy: float) -> torch.Tens
     """The gradient of the temperature loss ``-mean(log_alpha (log pi + target entropy))``
     with respect to ``log_alpha`` (Haarnoja et al. 2018b, Eq. 18)."""
     other = log_prob + target_entropy
-    g = -torch.ones(()).expand(other.shape[0]) / other.shape[0]
-    return (g * other).sum(0, keepdim=True).view(())
+    return ((-_mean_grad(0, other.shape[0])) * other).sum(0, keepdim=True).view(())
