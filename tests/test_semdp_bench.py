@@ -38,3 +38,18 @@ def test_semdp_bench_prints_throughput_and_time_split(
 def test_semdp_bench_rejects_a_bare_word() -> None:
     with pytest.raises(SystemExit, match="key=value"):
         main(["fast"])
+
+
+def test_semdp_bench_random_times_the_envs_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "semdp.csv"
+    main([*TINY, "env.num_envs=2", "algo.learner=process", "random=true", f"out={out}"])
+    text = capsys.readouterr().out
+    assert "of random actions" in text and "learner process" not in text
+    with out.open() as f:
+        (row,) = list(csv.DictReader(f))
+    # one untimed epoch of 16, then the 32 timed steps; no learner was started, nothing learnt
+    assert int(row["high_level_steps"]) == 32 and int(row["env_steps"]) == 320
+    assert row["learner"] == "none (random actions)" and float(row["learning_s"]) == 0.0
+    assert "algo.learning_starts=" in row["overrides"]

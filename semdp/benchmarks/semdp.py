@@ -5,11 +5,14 @@ time goes (thesis Alg. 2: perceive, plan, follow k steps, simulate; SAC learns).
     semdp-bench semdp env=semdp_point_push1 steps=6000
     semdp-bench semdp loop=sequential                   # the one-env, update-after-each-step loop
     semdp-bench semdp env.num_envs=2 algo.learner=inline
+    semdp-bench semdp random=true                       # the envs alone: random actions, no SAC
 
 Any ``key=value`` other than the bench's own (``steps``, ``out``) is a Hydra override of the
 ``semdp-train experiment=semdp`` config. The algorithm is built as ``semdp-train`` builds it,
 runs its uniformly random steps (``algo.learning_starts``, untimed), then ``steps``
-high-level steps of learning in whole epochs, without evaluation. Printed: high-level and env
+high-level steps of learning in whole epochs, without evaluation. ``random=true`` times the
+envs alone (the training process's side of the loop without acting and learning): uniformly
+random actions throughout, no learner, one untimed epoch first. Printed: high-level and env
 steps/s and the wall-time split -- perception, planning, following, simulation (inside the
 SEMDP envs), learning (in the training process: the updates, or the wait for the learner
 process), other (acting, replay, bookkeeping) -- how busy a learner process was, and the CPU
@@ -30,13 +33,13 @@ from typing import Any
 
 import torch
 
-from semdp.benchmarks.arguments import BenchArgumentError, as_int, parse_args
+from semdp.benchmarks.arguments import BenchArgumentError, as_bool, as_int, parse_args
 from semdp.build import build_algorithm
 from semdp.configs import compose_config
 from semdp.embedded.artifacts import timing_summary
 from semdp.paths import REPO_ROOT
 
-BENCH_KEYS = {"steps": "4000", "out": ""}
+BENCH_KEYS = {"steps": "4000", "out": "", "random": "false"}
 PARTS: tuple[tuple[str, str], ...] = (
     ("perception", "perception_s"), ("planning", "plan_s"), ("following", "follow_s"),
     ("simulation", "sim_s"),
@@ -55,15 +58,23 @@ def _parse(argv: list[str]) -> tuple[dict[str, str], list[str]]:
     return parse_args("semdp", own, BENCH_KEYS), overrides
 
 
-def measure(steps: int, overrides: list[str]) -> dict[str, Any]:
-    """Build the main job's algorithm, pass ``learning_starts``, time ``steps`` more steps."""
+#: ``algo.learning_starts`` of ``random=true``: never reached.
+NEVER = 10**15
+
+
+def measure(steps: int, overrides: list[str], random: bool = False) -> dict[str, Any]:
+    """Build the main job's algorithm, pass ``learning_starts``, time ``steps`` more steps
+    (``random``: random actions throughout, after one untimed epoch)."""
     if not any(o.startswith("experiment=") for o in overrides):
         overrides = ["experiment=semdp", *overrides]
-    cfg = compose_config("train", [*overrides, "tensorboard=false"])
+    extra = [f"algo.learning_starts={NEVER}"] if random else []
+    cfg = compose_config("train", [*overrides, *extra, "tensorboard=false"])
     torch.set_num_threads(int(cfg.torch_threads))
     algo = build_algorithm(cfg)
     try:
-        while algo.env_steps < int(cfg.algo.learning_starts):
+        if random:
+            algo.train_epoch()
+        while algo.env_steps < int(cfg.algo.learning_starts) and not random:
             algo.train_epoch()
         epochs = max(1, math.ceil(steps / algo.steps_per_epoch))
         inside0, learn0 = timing_summary([algo.envs]), dict(getattr(algo, "timing", {}))
@@ -88,25 +99,29 @@ def measure(steps: int, overrides: list[str]) -> dict[str, Any]:
     split["other"] = max(wall - sum(split.values()), 0.0)
     return {
         "env": str(cfg.env.id), "num_envs": algo.num_envs,
-        "learner": str(cfg.algo.get("learner", "sequential")), "seed": int(cfg.seed),
+        "learner": "none (random actions)" if random else str(cfg.algo.get("learner",
+                                                                              "sequential")),
+        "seed": int(cfg.seed),
         "high_level_steps": high, "env_steps": int(low), "wall_s": wall, "cpu_s": cpu,
         "high_level_steps_per_s": high / wall, "env_steps_per_s": low / wall,
         **{f"{name}_s": value for name, value in split.items()},
         "learner_busy_s": delta("learner_busy_s") if cfg.algo.get("learner") == "process"
         else split["learning"],
         "learner_cpu_s": delta("learner_cpu_s"),
-        "load_1min": os.getloadavg()[0], "overrides": " ".join(overrides),
+        "load_1min": os.getloadavg()[0], "overrides": " ".join([*overrides, *extra]),
     }
 
 
 def main(argv: list[str]) -> None:
     """Print the throughput and the time split; append them to the CSV."""
     args, overrides = _parse(argv)
-    row = measure(as_int(args, "steps", minimum=1), overrides)
+    args_random = as_bool(args, "random")
+    row = measure(as_int(args, "steps", minimum=1), overrides, args_random)
     wall, high = row["wall_s"], row["high_level_steps"]
     print(f"SEMDP training throughput on {platform.node()} ({os.cpu_count()} CPUs), "
           f"load {row['load_1min']:.2f}: {row['env']}, {row['num_envs']} env(s), learner "
-          f"{row['learner']}, {high} high-level steps after the random ones")
+          f"{row['learner']}, {high} high-level steps "
+          f"{'of random actions' if args_random else 'after the random ones'}")
     print(f"  {row['high_level_steps_per_s']:.0f} high-level steps/s, "
           f"{row['env_steps_per_s']:.0f} env steps/s (wall {wall:.1f} s, training process "
           f"CPU {row['cpu_s']:.1f} s)")
