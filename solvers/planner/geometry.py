@@ -34,9 +34,10 @@ def segment_distances(points: np.ndarray, centres: np.ndarray) -> np.ndarray:
     ab = (points[1:] - points[:-1])[:, None, :]
     ao = centres[None, :, :] - a
     length_sq = np.einsum("nmk,nmk->nm", ab, ab)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(length_sq > 0.0, np.einsum("nmk,nmk->nm", ao, ab) / length_sq, 0.0)
-    t = np.clip(t, 0.0, 1.0)
+    # the projection where the segment has a length, 0 where it is a point (no 0/0 computed)
+    along = np.einsum("nmk,nmk->nm", ao, ab)
+    t = np.divide(along, length_sq, out=np.zeros_like(along), where=length_sq > 0.0)
+    t = np.minimum(np.maximum(t, 0.0), 1.0)  # np.clip's operation without its wrappers
     closest = a + t[..., None] * ab
     diff = closest - centres[None, :, :]
     return np.sqrt(np.einsum("nmk,nmk->nm", diff, diff))

@@ -14,7 +14,6 @@ the start is) and flagged as a fallback. Many problems at once:
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import time
 from collections.abc import Sequence
@@ -27,7 +26,7 @@ from solvers.planner.backends.ipopt import IpoptBackend, IpoptSettings
 from solvers.planner.legacy_pickles import legacy_context
 from solvers.planner.problem.certificate import Iterate
 from solvers.planner.problem.context import ProblemContext
-from solvers.planner.problem.gp_prior import GPPrior, join
+from solvers.planner.problem.gp_prior import GPPrior
 from solvers.planner.problem.preparation import PreparedProblem
 from solvers.planner.problem.settings import ProblemSettings
 from solvers.planner.result import PlanResult
@@ -209,11 +208,9 @@ class SafeTrajectoryPlanner:
         if self.rescue_solver is not None and (
                 plan.failed or not (plan.passed or certificate.passes(prep, plan.z))):
             plan = self._rescue(prep, plan)
-        result = certificate.certify(prep, plan, backend=self.backend, tic=tic)
-        result = dataclasses.replace(
-            result, smoothness=self.prior.smoothness(join(result.waypoints - prep.start,
-                                                          result.velocities)),
-            smoothness_budget=self.sigma_smooth)
+        result = certificate.certify(prep, plan, backend=self.backend, tic=tic,
+                                     smoothness=self.prior.smoothness,
+                                     smoothness_budget=self.sigma_smooth)
         self.memory.remember(prep.start, prep.start + prep.goal, result.waypoints)
         return result
 

@@ -277,14 +277,15 @@ class LMBackend:
         # an obstacle that sits exactly on the straight line
         kernel.p[:] = self.params(prep, n_slots, lam, CANDIDATE_BUDGET_FACTOR)
         z = min(self.candidates(prep, warm), key=kernel.cost_at)
+        kernel.p[-2] = lam * 1.0  # = params(prep, n_slots, lam): only the budget weight differs
         total = 0
         while True:
-            kernel.p[:] = self.params(prep, n_slots, lam)
             z, _, done = kernel.minimise(z, iterations=s.iterations, damping=s.damping)
             total += done
             if not s.adaptive or lam >= s.lambda_max or passes(prep, z):
                 break
             lam = min(2.0 * lam, s.lambda_max)
+            kernel.p[:] = self.params(prep, n_slots, lam)
         return self.repair(prep, Iterate(z, "solved", total, lam))
 
     def repair(self, prep: PreparedProblem, plan: Iterate) -> Iterate:

@@ -12,12 +12,13 @@ instead of the subgoal (solvers/README.md, "Escape mode"). A backend hands its p
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from solvers.planner.geometry import point_distances, segment_distances
-from solvers.planner.problem.gp_prior import split
+from solvers.planner.problem.gp_prior import join, split
 from solvers.planner.problem.preparation import PreparedProblem
 from solvers.planner.result import PlanResult
 
@@ -92,7 +93,14 @@ class Certificate:
         return bool(np.all(distances >= need[None, :]))
 
     def certify(
-        self, prep: PreparedProblem, plan: Iterate, *, backend: str, tic: float
+        self,
+        prep: PreparedProblem,
+        plan: Iterate,
+        *,
+        backend: str,
+        tic: float,
+        smoothness: Callable[[np.ndarray], float] | None = None,
+        smoothness_budget: float = float("nan"),
     ) -> PlanResult:
         """Check the plan against every obstacle; replace it by the stationary one if it fails.
 
@@ -101,6 +109,8 @@ class Certificate:
             plan: The backend's (or the rescue's) iterate.
             backend: Name reported in the result.
             tic: ``time.perf_counter()`` at the start of the ``plan`` call.
+            smoothness: ``h_smooth`` of trajectory variables (start-relative), reported for
+                the returned plan with ``smoothness_budget`` (``nan`` without it).
         """
         z = plan.z
         status = plan.status
@@ -130,8 +140,9 @@ class Certificate:
             feasible = bool((checked >= prep.clearances[None, :] - floor).all())
         gap = positions[-1] - prep.goal
         objective = float(gap @ gap)
+        waypoints = positions + prep.start
         return PlanResult(
-            waypoints=positions + prep.start,
+            waypoints=waypoints,
             velocities=velocities,
             feasible=feasible,
             status=status,
@@ -147,6 +158,9 @@ class Certificate:
             multiplier=float(plan.multiplier),
             n_considered=len(prep.selected),
             rescued=plan.rescued and not fallback,
+            smoothness=(float("nan") if smoothness is None
+                        else smoothness(join(waypoints - prep.start, velocities))),
+            smoothness_budget=smoothness_budget,
         )
 
 
