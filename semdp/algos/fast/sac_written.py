@@ -5,9 +5,9 @@ The learner's update (:class:`~semdp.algos.sac_learner.SACLearner`) is small net
 batch of 128: autograd's graph bookkeeping costs about as much as the arithmetic. This module
 runs the same update without a graph: every forward operation of the plain path, then, for
 each backward node autograd would run, the operation its derivative formula runs
-(``tools/autograd/derivatives.yaml``: ``addmm``/``baddbmm``/``mm`` backward, ``threshold_backward``
-for ReLU, ``tanh_backward``, ``softplus_backward``, ``min`` as a scatter, ``sum_to`` for
-broadcast biases), in the order autograd's engine accumulates them. The gradients are then
+(PyTorch's ``tools/autograd/derivatives.yaml``: ``addmm``/``baddbmm``/``mm`` backward,
+``threshold_backward`` for ReLU, ``tanh_backward``, ``softplus_backward``, ``min`` as a
+scatter, ``sum_to`` for broadcast biases), in the order autograd's engine accumulates them. The gradients are then
 autograd's bit for bit (``tests/test_sac_written.py`` compares them update by update), so a run
 gives the same numbers with either kernel; only the time differs.
 
