@@ -7,9 +7,9 @@ runs the same update without a graph: every forward operation of the plain path,
 each backward node autograd would run, the operation its derivative formula runs
 (PyTorch's ``tools/autograd/derivatives.yaml``: ``addmm``/``baddbmm``/``mm`` backward,
 ``threshold_backward`` for ReLU, ``tanh_backward``, ``softplus_backward``, ``min`` as a
-scatter, ``sum_to`` for broadcast biases), in the order autograd's engine accumulates them. The gradients are then
-autograd's bit for bit (``tests/test_sac_written.py`` compares them update by update), so a run
-gives the same numbers with either kernel; only the time differs.
+scatter, ``sum_to`` for broadcast biases), in the order autograd's engine accumulates them.
+The gradients are then autograd's bit for bit (``tests/test_sac_written.py`` compares them
+update by update), so a run gives the same numbers with either kernel; only the time differs.
 
 Covers what the main job trains: the fused twin critic without LayerNorm and the ReLU
 :class:`~semdp.common.networks.SquashedGaussianActor`; anything else raises.
