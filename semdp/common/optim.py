@@ -214,7 +214,7 @@ class LeanAdam(_OneGroupAdam):
         """:meth:`step` with the gradients given in parameter order instead of read from
         ``.grad``, and without the optimiser's step hooks (for callers that run under
         ``torch.no_grad`` and compute the gradients themselves, e.g. the SAC learner's
-        ``manual`` kernel): the same arithmetic."""
+        ``gradients="written"`` kernel): the same arithmetic."""
         if self._state_lists is None:
             for p, g in zip(self._params, grads, strict=True):
                 p.grad = g
