@@ -121,16 +121,9 @@ class SACLearner:
     def _policy(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """A reparameterised sample of the squashed policy and its log-probability (the
         computation of :class:`SquashedGaussianActor`, with this learner's noise)."""
-        actor = self.actor
-        mean, raw_log_std = forward_mlp(actor.net, obs).chunk(2, dim=-1)
-        span = actor.LOG_STD_MAX - actor.LOG_STD_MIN
-        log_std = actor.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
-        noise = self._noise(obs.shape[0])
-        pre_tanh = mean + log_std.exp() * noise
-        correction = 2.0 * (math.log(2.0) - pre_tanh - nn.functional.softplus(-2.0 * pre_tanh))
-        log_prob = (-0.5 * noise.square() - log_std - 0.5 * math.log(2.0 * math.pi)
-                    - correction).sum(-1)
-        return torch.tanh(pre_tanh), log_prob
+        mean, raw_log_std = forward_mlp(self.actor.net, obs).chunk(2, dim=-1)
+        sample = self.actor.reparameterised(mean, raw_log_std, self._noise(obs.shape[0]))
+        return sample.action, sample.log_prob
 
     def update(self, size: int, logs: dict[str, list[torch.Tensor]]) -> None:
         """One critic update on a minibatch of the first ``size`` rows (+ the delayed actor and

@@ -11,6 +11,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import torch
 import torch.nn.functional as F
@@ -147,6 +148,41 @@ class SquashedGaussianActor(nn.Module):
         # Normal.rsample: loc + eps * scale, eps from normal_() on a fresh tensor
         noise = torch.empty(mean.shape, dtype=mean.dtype, device=mean.device).normal_()
         return torch.tanh(mean + noise * log_std.exp())
+
+    @classmethod
+    def reparameterised(
+        cls, mean: torch.Tensor, raw_log_std: torch.Tensor, noise: torch.Tensor,
+    ) -> SquashedSample:
+        """:meth:`forward`'s sample written with its standard-normal ``noise``: ``u = mean +
+        std * noise``, ``log N(u) = -noise^2 / 2 - log std - log(2 pi) / 2`` (the SAC
+        learner's form, one formula for its autograd and its written gradients).
+
+        The order of the operations is part of the contract: under autograd, ``u``'s three
+        gradients are accumulated in the reverse order of its uses (``log 2 - u``, then
+        ``-2 u``, then ``tanh(u)``), which the written backward of
+        :mod:`semdp.algos.fast.sac_written` reproduces bit for bit."""
+        span = cls.LOG_STD_MAX - cls.LOG_STD_MIN
+        tanh_raw = torch.tanh(raw_log_std)
+        log_std = cls.LOG_STD_MIN + 0.5 * span * (tanh_raw + 1.0)
+        std = log_std.exp()
+        pre_tanh = mean + std * noise
+        log2_minus = math.log(2.0) - pre_tanh
+        neg2 = -2.0 * pre_tanh
+        correction = 2.0 * (log2_minus - nn.functional.softplus(neg2))
+        log_prob = (-0.5 * noise.square() - log_std - 0.5 * math.log(2.0 * math.pi)
+                    - correction).sum(-1)
+        return SquashedSample(torch.tanh(pre_tanh), log_prob, tanh_raw, std, neg2)
+
+
+class SquashedSample(NamedTuple):
+    """:meth:`SquashedGaussianActor.reparameterised`'s action and log-probability, and the
+    intermediate values a written backward needs."""
+
+    action: torch.Tensor
+    log_prob: torch.Tensor
+    tanh_raw: torch.Tensor
+    std: torch.Tensor
+    neg2_pre_tanh: torch.Tensor
 
 
 class TwinQCritic(nn.Module):

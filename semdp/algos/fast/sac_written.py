@@ -18,7 +18,6 @@ Covers what the main job trains: the fused twin critic without LayerNorm and the
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -149,7 +148,9 @@ def actor_forward(
     actor: SquashedGaussianActor, obs: torch.Tensor, noise: torch.Tensor,
 ) -> tuple[torch.Tensor, torch.Tensor, ActorTape]:
     """:meth:`SACLearner._policy <semdp.algos.sac_learner.SACLearner._policy>`'s operations
-    with the noise given: the action, its log-probability and the tape."""
+    with the noise given (the trunk, recording each ``Linear``'s input, then
+    :meth:`SquashedGaussianActor.reparameterised`): the action, its log-probability and the
+    tape."""
     inputs = []
     x = obs
     for layer in actor.net:
@@ -159,17 +160,9 @@ def actor_forward(
         else:
             x = torch.relu(x)
     mean, raw_log_std = x.chunk(2, dim=-1)
-    span = actor.LOG_STD_MAX - actor.LOG_STD_MIN
-    tanh_raw = torch.tanh(raw_log_std)
-    log_std = actor.LOG_STD_MIN + 0.5 * span * (tanh_raw + 1.0)
-    std = log_std.exp()
-    pre_tanh = mean + std * noise
-    neg2 = -2.0 * pre_tanh
-    correction = 2.0 * (math.log(2.0) - pre_tanh - nn.functional.softplus(neg2))
-    log_prob = (-0.5 * noise.square() - log_std - 0.5 * math.log(2.0 * math.pi)
-                - correction).sum(-1)
-    action = torch.tanh(pre_tanh)
-    return action, log_prob, ActorTape(inputs, tanh_raw, std, noise, neg2, action)
+    sample = actor.reparameterised(mean, raw_log_std, noise)
+    return sample.action, sample.log_prob, ActorTape(
+        inputs, sample.tanh_raw, sample.std, noise, sample.neg2_pre_tanh, sample.action)
 
 
 def actor_backward(
