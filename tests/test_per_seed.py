@@ -14,16 +14,19 @@ from semdp.paths import REFERENCE_DIR
 from semdp.reporting.per_seed import main, per_seed_table
 from semdp.reporting.runs import load_runs
 
-FOLDER = REFERENCE_DIR / "semdp_push_8e6_seeds"
-#: The command of the folder's COMMAND.md.
+#: Table 3.1's baselines (with their policies) and the earlier runs it replaced.
+FOLDERS = ["semdp_push_8e6_policies", "semdp_push_8e6_seeds"]
+#: The command of the folders' COMMAND.md.
 ARGUMENTS = ["--title", "Table 3.1 baselines at 8e6 env steps: per seed",
              "--order", "CPO,PPO Lag,TRPO Lag", "--late", "0.1"]
 
 
-def test_the_committed_per_seed_table_is_rebuilt_from_the_kept_runs(tmp_path: Path) -> None:
+@pytest.mark.parametrize("folder", FOLDERS)
+def test_the_committed_per_seed_table_is_rebuilt_from_the_kept_runs(tmp_path: Path,
+                                                                    folder: str) -> None:
     out = tmp_path / "per_seed.md"
-    main([str(FOLDER / "runs"), *ARGUMENTS, "--out", str(out)])
-    assert out.read_text() == (FOLDER / "per_seed.md").read_text()
+    main([str(REFERENCE_DIR / folder / "runs"), *ARGUMENTS, "--out", str(out)])
+    assert out.read_text() == (REFERENCE_DIR / folder / "per_seed.md").read_text()
     assert "27 runs (3 methods x 3 envs, seeds 0, 1, 2)" in out.read_text()
 
 
