@@ -119,8 +119,8 @@ class SACLearner:
         return torch.randn((batch, self.settings.act_dim), generator=self.generator)
 
     def _policy(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """A reparameterised sample of the squashed policy and its log-probability (the
-        computation of :class:`SquashedGaussianActor`, with this learner's noise)."""
+        """A reparameterised sample of the squashed policy and its log-probability
+        (:meth:`SquashedGaussianActor.reparameterised` with this learner's noise)."""
         mean, raw_log_std = forward_mlp(self.actor.net, obs).chunk(2, dim=-1)
         sample = self.actor.reparameterised(mean, raw_log_std, self._noise(obs.shape[0]))
         return sample.action, sample.log_prob
