@@ -11,8 +11,15 @@ machine; with the pin below the helper runs agree and every re-run is bit-identi
 
 :func:`pin_cpu_kernels` sets, before torch is imported and only where the user has not:
 
-* ``MKL_CBWR=AVX2`` -- MKL's conditional numerical reproducibility: the AVX2 code path on
-  every processor that has it, the same bits whatever the alignment;
+* ``MKL_CBWR`` -- MKL's conditional numerical reproducibility, the same bits whatever the
+  alignment: ``AVX2`` on AMD processors and ``COMPATIBLE`` on Intel ones
+  (:func:`mkl_branch`). MKL honours its AVX2 branch on Intel processors only; on an AMD EPYC
+  it runs the branch it uses for every non-Intel processor, and the committed policies'
+  evaluations were recorded there. On an Intel Xeon (AVX-512) the AVX2 branch gave other last
+  bits, and 62 of the 63 evaluation checks of the policy zoo (``tests/test_zoo.py``) other
+  episodes; the ``COMPATIBLE`` branch reproduced all 63. Training's larger products still
+  differ in the last bits between the two vendors under every branch tried (the golden
+  learning curves are recorded per vendor: ``tests/data/golden/``);
 * ``ATEN_CPU_CAPABILITY=avx2`` -- torch's own vectorised kernels at the same level;
 * ``OPENBLAS_CORETYPE=Haswell`` -- numpy's and scipy's OpenBLAS (the follower's network in
   numpy, the planner's banded Cholesky) at the AVX2 kernels too: OpenBLAS 0.3.31 chooses its
@@ -30,9 +37,28 @@ from __future__ import annotations
 import os
 import platform
 
-#: The environment this module sets (each only if unset).
+#: The environment this module sets (each only if unset); ``MKL_CBWR`` by :func:`mkl_branch`.
 PINNED: dict[str, str] = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2",
                           "OPENBLAS_CORETYPE": "Haswell"}
+
+
+def cpu_vendor() -> str:
+    """``/proc/cpuinfo``'s ``vendor_id`` (``GenuineIntel``, ``AuthenticAMD``), else ``""``."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("vendor_id"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return ""
+
+
+def mkl_branch(vendor: str) -> str:
+    """The ``MKL_CBWR`` branch pinned on a processor of ``vendor`` (see the module docstring):
+    ``COMPATIBLE`` on Intel, whose AVX2 branch differs from what MKL runs on other vendors'
+    processors, ``AVX2`` elsewhere."""
+    return "COMPATIBLE" if vendor == "GenuineIntel" else "AVX2"
 
 
 def _has_avx2() -> bool:
@@ -51,7 +77,7 @@ def pin_cpu_kernels() -> dict[str, str]:
     if platform.machine().lower() not in ("x86_64", "amd64") or not _has_avx2():
         return {}
     done = {}
-    for key, value in PINNED.items():
+    for key, value in {**PINNED, "MKL_CBWR": mkl_branch(cpu_vendor())}.items():
         if key not in os.environ:
             os.environ[key] = value
             done[key] = value

@@ -55,3 +55,22 @@ def test_numpys_openblas_runs_the_pinned_kernels_when_semdp_comes_first() -> Non
     if out.returncode != 0:
         pytest.skip(f"numpy's OpenBLAS does not report its kernels here: {out.stderr[-200:]}")
     assert out.stdout.strip().lower() == "haswell"
+
+
+def test_mkl_runs_its_compatible_branch_on_intel_and_avx2_elsewhere() -> None:
+    from semdp.numerics import mkl_branch
+
+    assert mkl_branch("GenuineIntel") == "COMPATIBLE"
+    assert mkl_branch("AuthenticAMD") == "AVX2"
+    assert mkl_branch("") == "AVX2"
+
+
+@pytest.mark.skipif(not X86, reason="the pin is for x86-64 (MKL)")
+def test_the_pin_picks_the_branch_of_this_machines_vendor(monkeypatch: pytest.MonkeyPatch) -> None:
+    from semdp.numerics import cpu_vendor, mkl_branch
+
+    for key in PINNED:
+        monkeypatch.delenv(key, raising=False)
+    monkeypatch.delenv("SEMDP_FREE_KERNELS", raising=False)
+    assert pin_cpu_kernels()["MKL_CBWR"] == mkl_branch(cpu_vendor())
+    assert os.environ["MKL_CBWR"] == mkl_branch(cpu_vendor())

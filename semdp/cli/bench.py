@@ -20,6 +20,7 @@ SUITES: dict[str, str] = {
     "train": "semdp.benchmarks.train",
     "semdp": "semdp.benchmarks.semdp",
     "safety": "semdp.benchmarks.safety",
+    "price": "semdp.benchmarks.price",
 }
 
 

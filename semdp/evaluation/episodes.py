@@ -5,7 +5,9 @@ Per episode: reset seed, return, cost, length (low-level env steps) and, at epis
 wrapper reports in ``info`` (semdp/README.md, "The wrapper"): high-level steps (plans),
 fallbacks (``plan_fallback``: the stationary plan replaced an uncertified one), escapes
 (``plan_escape``: the start was inside eps'), rescues (``plan_rescued``: IPOPT re-solved a plan
-LM could not certify) and the smallest certified clearance (``plan_min_clearance``).
+LM could not certify), the smallest certified clearance (``plan_min_clearance``) and, with the
+low-level safety filter on, the low-level commands it replaced (``shield_interventions``), of
+which by an escape action rather than braking (``shield_escapes``).
 """
 
 from __future__ import annotations
@@ -40,7 +42,9 @@ def play_episode(algo: Any, ev: EvaluationEnv, seed: int, record: bool = False,
     obs, _ = ev.env.reset(seed=seed)
     semdp = ev.semdp
     ret = cost = 0.0
-    length = steps = fallbacks = escapes = rescues = 0
+    length = steps = fallbacks = escapes = rescues = shielded = 0
+    shield = getattr(semdp, "shield", None)
+    escaped_before = shield.stats.escaped if shield is not None else 0
     min_clearance = math.inf
     success = None
     while True:
@@ -59,6 +63,7 @@ def play_episode(algo: Any, ev: EvaluationEnv, seed: int, record: bool = False,
             fallbacks += bool(info.get("plan_fallback"))
             escapes += bool(info.get("plan_escape"))
             rescues += bool(info.get("plan_rescued"))
+            shielded += int(info.get("shield_interventions", 0))
             min_clearance = min(min_clearance, float(info.get("plan_min_clearance", math.inf)))
         if terminated or truncated:
             for key in ("success", "is_success"):
@@ -69,7 +74,10 @@ def play_episode(algo: Any, ev: EvaluationEnv, seed: int, record: bool = False,
                                "success": success}
     if semdp is not None:
         episode.update(high_level_steps=steps, plan_fallbacks=fallbacks, plan_escapes=escapes,
-                       plan_rescues=rescues, plan_min_clearance=_finite(min_clearance))
+                       plan_rescues=rescues, plan_min_clearance=_finite(min_clearance),
+                       shield_interventions=shielded,
+                       shield_escapes=(shield.stats.escaped - escaped_before
+                                       if shield is not None else 0))
     return episode
 
 
@@ -88,6 +96,9 @@ def summarise(episodes: Sequence[dict[str, Any]]) -> dict[str, Any]:
     }
     if episodes and "high_level_steps" in episodes[0]:
         plans = int(sum(e["high_level_steps"] for e in episodes))
+        low = max(int(sum(e["length"] for e in episodes)), 1)
+        shielded = int(sum(e.get("shield_interventions", 0) for e in episodes))
+        shield_escapes = int(sum(e.get("shield_escapes", 0) for e in episodes))
         clearances = [e["plan_min_clearance"] for e in episodes
                       if e["plan_min_clearance"] is not None]
         out.update(
@@ -96,6 +107,11 @@ def summarise(episodes: Sequence[dict[str, Any]]) -> dict[str, Any]:
             plan_escapes=int(sum(e["plan_escapes"] for e in episodes)),
             plan_rescues=int(sum(e["plan_rescues"] for e in episodes)),
             plan_fallback_rate=sum(e["plan_fallbacks"] for e in episodes) / max(plans, 1),
+            plan_escape_rate=sum(e["plan_escapes"] for e in episodes) / max(plans, 1),
+            plan_rescue_rate=sum(e["plan_rescues"] for e in episodes) / max(plans, 1),
+            shield_interventions=shielded,
+            shield_rate=shielded / low,
+            shield_escape_rate=shield_escapes / low,
             plan_min_clearance=min(clearances) if clearances else None,
             plan_min_clearance_mean=float(np.mean(clearances)) if clearances else None,
         )

@@ -15,6 +15,7 @@ import datetime as dt
 import json
 import shutil
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -91,17 +92,33 @@ def _label(source: dict[str, Any], cfg: DictConfig, options: EvalOptions) -> str
     return f"{base} [eval{' ' + ' '.join(changes) if changes else ''}]"
 
 
-def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[str, Any]]:
-    """Evaluate ``run_dir`` (or a zoo entry ``zoo:<name>``, :mod:`semdp.evaluation.zoo`) under
-    ``arguments``; return the new directory and its metrics.
+@dataclass
+class Played:
+    """The episodes of one evaluation, before anything is written (:func:`play_run`)."""
+
+    run_dir: Path
+    out_root: Path | None
+    options: EvalOptions
+    cfg: DictConfig
+    seeds: list[int]
+    episodes: list[dict[str, Any]]
+    frames: list[Any]
+    settings: dict[str, Any]
+    fps: float
+    wall_time_s: float
+
+
+def play_run(run_dir: str | Path, arguments: list[str] | tuple[str, ...]) -> Played:
+    """Play the evaluation episodes of ``run_dir`` (or ``zoo:<name>``) under ``arguments``;
+    write nothing.
 
     Raises:
         EvalError: a bad run directory, zoo name or argument, an unknown key, or a checkpoint
-            of another algorithm (nothing is written then).
+            of another algorithm.
     """
     run_dir, out_root = resolve(str(run_dir))
     check_run_dir(run_dir)
-    options = parse_arguments(arguments)
+    options = parse_arguments(list(arguments))
     saved = load_run_config(run_dir)
     cfg = edited_config(saved, options)
     seeds = episode_seeds(options, cfg)
@@ -116,13 +133,29 @@ def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[
         if i == 0 and ev.recorder is not None:
             frames = ev.recorder.frames
     ev.env.close()
+    fps = float(ev.env.metadata.get("render_fps", 50)) / options.video_every
+    return Played(run_dir, out_root, options, cfg, seeds, episodes, frames, ev.settings, fps,
+                  time.perf_counter() - start)
+
+
+def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[str, Any]]:
+    """Evaluate ``run_dir`` (or a zoo entry ``zoo:<name>``, :mod:`semdp.evaluation.zoo`) under
+    ``arguments``; return the new directory and its metrics.
+
+    Raises:
+        EvalError: a bad run directory, zoo name or argument, an unknown key, or a checkpoint
+            of another algorithm (nothing is written then).
+    """
+    played = play_run(run_dir, arguments)
+    run_dir, options, cfg, seeds, frames = (played.run_dir, played.options, played.cfg,
+                                            played.seeds, played.frames)
     source_file = run_dir / "metrics.json"
     source = json.loads(source_file.read_text()) if source_file.is_file() else {}
-    out_dir = _out_dir(out_root or run_dir)
+    out_dir = _out_dir(played.out_root or run_dir)
     out_dir.mkdir(parents=True)
     video = None
     if options.video:
-        fps = float(ev.env.metadata.get("render_fps", 50)) / options.video_every
+        fps = played.fps
         try:
             path = write_video(frames, out_dir / f"episode_{seeds[0]}", fps=fps)
         except Exception:
@@ -146,13 +179,13 @@ def evaluate_run(run_dir: str | Path, arguments: list[str]) -> tuple[Path, dict[
         "evaluation_of": str(run_dir),
         "arguments": list(arguments),
         "settings": {
-            **ev.settings, "seeds": seeds, "actions": options.actions,
+            **played.settings, "seeds": seeds, "actions": options.actions,
             "planner": OmegaConf.to_container(planner) if OmegaConf.is_config(planner) else None,
             "perception": wrapper.get("perception") if OmegaConf.is_dict(wrapper) else None,
         },
-        "wall_time_s": time.perf_counter() - start,
-        "eval": summarise(episodes),
-        "episodes": episodes,
+        "wall_time_s": played.wall_time_s,
+        "eval": summarise(played.episodes),
+        "episodes": played.episodes,
         "video": video,
     }
     write_metrics(out_dir / "metrics.json", metrics)
