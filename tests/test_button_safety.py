@@ -75,6 +75,31 @@ def test_filter_regions_cover_the_wrong_buttons_and_spare_the_goal_button() -> N
     assert not inside[3].any()  # the goal button's does not
 
 
+def test_a_wrong_buttons_aliasing_bound_reads_the_goal_buttons_bin_from_the_whole_channel(
+) -> None:
+    # the goal button (nearer) owns the bin next to a wrong button's, where the wrong button's
+    # alias is outshone; the channel less the goal button's bins reads 0 there, which would
+    # bound the wrong button's alpha by 0 and put its region on the wrong edge of its bin
+    w = 2 * math.pi / 16
+    wrong = (1.5 * math.cos(0.7 * w), 1.5 * math.sin(0.7 * w))   # bin 0, alpha 0.7
+    goal = (1.0 * math.cos(1.9 * w), 1.0 * math.sin(1.9 * w))    # bin 1, the goal
+    env = gym.make("sims/SafetyPointButton1-v0")
+    layout = {"agent": (0.0, 0.0), "agent_yaw": 0.0, "hazards": [], "gremlins": [],
+              "buttons": [wrong, (-1.5, 1.5), (-1.3, -1.6), goal]}
+    obs, _ = env.reset(seed=SEED_GOAL_ELSEWHERE, options={"layout": layout})
+    base = env.unwrapped
+    assert base.goal_button == 3
+    frame = button_frame(base, obs)
+    assert frame.readings[1] == 0.0 and frame.whole[1] > 0.6  # the goal's bin removed
+    shield = SafetyShield(perception="lidar", kinds=("buttons",))
+    shield.bind(base)
+    regions = shield.cost_regions(base, obs)
+    allowance = regions[:, 2] - (shield._radii["buttons"] + shield.margin)
+    gap = np.linalg.norm(regions[:, :2] - np.array(wrong), axis=1) - allowance
+    assert gap.min() <= 1e-9
+    assert allowance[int(np.argmin(gap))] < 0.5 * 0.196 * 1.5  # tighter than the whole bin
+
+
 def test_a_blank_button_channel_is_read_from_the_last_lit_frame() -> None:
     # after a press the buttons LiDAR is blank for 10 steps; buttons never move
     env, obs = _button_env("mass", SEED_GOAL_ELSEWHERE)

@@ -17,7 +17,8 @@ compares with ``golden/GenuineIntel/`` (recorded on an Intel Xeon with the same 
 * Files that pin today's defaults: PPO-Lag with the written-out derivatives and two evaluation
   processes, checked with every helper off (``loop=single``) and on (``loop=helpers``), which
   must give the same numbers; the SEMDP main job's pipelined loop (lockstep envs, a learner
-  process) past ``learning_starts``, so the learner's updates are pinned too.
+  process) past ``learning_starts``, so the learner's updates are pinned too (with the filter's
+  whole-bin LiDAR bound it was recorded with).
 """
 
 from __future__ import annotations
@@ -80,7 +81,8 @@ def _is_clock(column: str) -> bool:
          ["algo=ppo_lag", "env=point_goal1", "budget=ci", "seed=0", "loop=helpers"]),
         ("semdp_pipelined_s0.csv",
          ["experiment=semdp", "budget=ci", "seed=0", "total_steps=2400",
-          "algo.learning_starts=800", "tensorboard=false", "algo.hidden_sizes=[256,256]"]),
+          "algo.learning_starts=800", "tensorboard=false", "algo.hidden_sizes=[256,256]",
+          "env.shield.lidar_bearing_bound=bin"]),
     ],
     ids=["ppo_lag_d56383e", "semdp_sequential_d56383e", "ppo_lag_helpers_off",
          "ppo_lag_helpers_on", "semdp_pipelined"],

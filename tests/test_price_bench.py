@@ -35,7 +35,9 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
     changed = {
         "planner_gt": {"env.eval_wrapper.perception": "gt"},
         "filter_gt": {"env.eval_wrapper.shield.perception": "gt"},
-        "filter_unbounded": {"env.eval_wrapper.shield.lidar_bearing_bound": False},
+        "filter_unbounded": {"env.eval_wrapper.shield.lidar_bearing_bound": "none"},
+        "filter_bin": {"env.eval_wrapper.shield.lidar_bearing_bound": "bin"},
+        "filter_aliasing": {"env.eval_wrapper.shield.lidar_bearing_bound": "aliasing"},
         "no_filter": {"env.eval_wrapper.shield": None},
         "gt_all": {"env.eval_wrapper.perception": "gt",
                    "env.eval_wrapper.shield.perception": "gt"},

@@ -144,7 +144,7 @@ def test_shield_rejects_bad_arguments() -> None:
         SafetyShield(fallback="pray")
 
 
-def _covered_miss(bound: bool, distance: float) -> float:
+def _covered_miss(bound: str | bool, distance: float) -> float:
     """Largest distance, over bearings swept through two LiDAR bins, by which the true hazard
     centre lies outside every perceived region's bearing allowance (<= 0: always covered)."""
     env = gym.make("sims/SafetyPointGoal1-v0")
@@ -168,9 +168,105 @@ def _covered_miss(bound: bool, distance: float) -> float:
 def test_lidar_regions_cover_the_true_hazard_at_any_bearing(distance: float) -> None:
     # a LiDAR bin gives the range exactly, the bearing to half a bin: the bounded regions must
     # contain the true centre; the bin-centre reconstruction misses it by up to ~0.196 * d
-    assert _covered_miss(True, distance) <= 1e-9
-    miss = _covered_miss(False, distance)
+    assert _covered_miss("aliasing", distance) <= 1e-9
+    assert _covered_miss("bin", distance) <= 1e-9
+    assert _covered_miss(True, distance) <= 1e-9  # configs recorded before: "bin"
+    miss = _covered_miss("none", distance)
     assert 0.15 * distance < miss <= 0.2 * distance
+
+
+def _hazard_regions(hazards: list[tuple[float, float]], bound: str = "aliasing",
+                    agent: tuple[float, float] = (0.0, 0.0), yaw: float = 0.0):
+    env = gym.make("sims/SafetyPointGoal1-v0")
+    layout = {"agent": agent, "agent_yaw": yaw, "hazards": hazards, "vases": [(-2.9, -2.9)],
+              "goal": (2.9, -2.9)}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    shield = SafetyShield(margin=0.05, perception="lidar", kinds=("hazards",),
+                          lidar_bearing_bound=bound)
+    shield.bind(env.unwrapped)
+    allowance = regions = shield.cost_regions(env.unwrapped, obs)
+    allowance = regions[:, 2] - (env.unwrapped.hazard_radius + 0.05)
+    return regions, allowance, obs[env.unwrapped.obs_slices["hazards_lidar"]]
+
+
+def test_an_isolated_objects_aliasing_region_is_its_cost_disc_at_the_true_place() -> None:
+    # one hazard: its two neighbour bins give alpha exactly, so its region is the hazard's cost
+    # disc (+ the float32 tolerances) centred on it; the ghosts in the neighbour bins are either
+    # dropped (empty interval) or sit on the bin edge, farther away
+    hazard = np.array([1.1 * math.cos(0.5), 1.1 * math.sin(0.5)])
+    regions, allowance, _ = _hazard_regions([tuple(hazard)])
+    nearest = int(np.argmin(np.linalg.norm(regions[:, :2] - hazard, axis=1)))
+    assert np.linalg.norm(regions[nearest, :2] - hazard) < 1e-5
+    assert 0.0 < allowance[nearest] < 1e-5
+    bin_regions, bin_allowance, _ = _hazard_regions([tuple(hazard)], "bin")
+    assert bin_allowance.min() > 0.19 * 1.1 * 0.9  # the whole bin's bound at 1.1 m
+    assert len(regions) <= len(bin_regions)
+
+
+def _seen(hazards: np.ndarray, readings: np.ndarray) -> np.ndarray:
+    """Which hazards the filter's law covers: the largest contribution to their own bin
+    (the agent at the origin, heading 0; the sensor of sims/safety_gym/lidar.py)."""
+    seen = []
+    for x, y in hazards:
+        d = math.hypot(x, y)
+        angle = math.atan2(y, x) % (2 * math.pi)
+        i = int(angle / (2 * math.pi / 16)) % 16
+        seen.append(d < 3.0 and abs(readings[i] - (3.0 - d) / 3.0) < 1e-6)
+    return np.array(seen, dtype=bool)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_aliasing_regions_contain_every_object_the_law_covers_in_crowded_layouts(
+        seed: int) -> None:
+    # planted crowds: 3-5 hazards within 2.5 m, often in neighbouring bins, so that a
+    # neighbour's reading is another hazard's and alpha is only bounded, not known; every
+    # hazard that is the largest contribution to its own bin must lie in a region's allowance
+    rng = np.random.default_rng(seed)
+    covered = checked = 0
+    for _ in range(40):
+        n = int(rng.integers(3, 6))
+        ranges = rng.uniform(0.5, 2.5, n)
+        bearings = rng.uniform(0.0, 0.9, n) + rng.uniform(0, 2 * math.pi)
+        hazards = np.column_stack([ranges * np.cos(bearings), ranges * np.sin(bearings)])
+        if np.min(np.linalg.norm(hazards[:, None] - hazards[None], axis=-1)
+                  + np.eye(n) * 9) < 0.3:
+            continue  # the simulator needs its objects apart
+        regions, allowance, readings = _hazard_regions([tuple(h) for h in hazards])
+        gaps = np.linalg.norm(hazards[:, None] - regions[None, :, :2], axis=-1) - allowance
+        seen = _seen(hazards, readings)
+        checked += int(seen.sum())
+        assert np.all(gaps.min(axis=1)[seen] <= 1e-9)
+        covered += int((gaps.min(axis=1)[seen] <= 1e-9).sum())
+    assert checked >= 30
+
+
+def test_the_aliasing_interval_is_needed_where_a_neighbour_bin_holds_another_object() -> None:
+    # two hazards in neighbouring bins: the ratio of readings is not the first hazard's alpha
+    # (the neighbour bin holds the second hazard's own reading), and a region at that ratio's
+    # bearing would miss it; the interval's region holds it
+    w = 2 * math.pi / 16
+    first = (1.0 * math.cos(0.3 * w), 1.0 * math.sin(0.3 * w))     # bin 0, alpha 0.3
+    second = (1.3 * math.cos(1.5 * w), 1.3 * math.sin(1.5 * w))    # bin 1, nearer its centre
+    regions, allowance, readings = _hazard_regions([first, second])
+    point_alpha = readings[1] / readings[0]
+    assert point_alpha > 0.5  # the naive estimate puts the first hazard in bin 0's far half
+    naive = np.array([math.cos(point_alpha * w), math.sin(point_alpha * w)]) * 1.0
+    assert np.linalg.norm(naive - first) > 0.1
+    gaps = np.linalg.norm(np.array([first, second])[:, None] - regions[None, :, :2],
+                          axis=-1) - allowance
+    assert np.all(gaps.min(axis=1) <= 1e-9)
+
+
+def test_a_filter_pickled_with_a_boolean_bound_resumes_as_it_was() -> None:
+    import pickle
+
+    shield = SafetyShield()
+    shield.__dict__["lidar_bearing_bound"] = True  # what a checkpoint written before holds
+    restored = pickle.loads(pickle.dumps(shield))
+    assert restored.bearing_bound == "bin"
+    assert SafetyShield(lidar_bearing_bound=False).bearing_bound == "none"
+    with pytest.raises(ValueError, match="lidar_bearing_bound"):
+        SafetyShield(lidar_bearing_bound="sonar")
 
 
 def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_bin() -> None:
@@ -181,7 +277,8 @@ def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_
               "vases": [(0.2, -1.3)], "goal": (2.0, -2.0)}
     obs, _ = env.reset(seed=0, options={"layout": layout})
     base = env.unwrapped
-    shield = SafetyShield(margin=0.05, perception="lidar", kinds=("hazards", "vases"))
+    shield = SafetyShield(margin=0.05, perception="lidar", kinds=("hazards", "vases"),
+                          lidar_bearing_bound="bin")
     shield.bind(base)
     regions, contact, orbit = shield._regions(base, obs)
     expected, touches = [], []

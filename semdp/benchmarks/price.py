@@ -14,6 +14,9 @@ factor                    what changes (``semdp-eval`` arguments)
 ``planner_gt``            the planner sees the true obstacles (``perception=gt``, "w/ gt")
 ``filter_gt``             the filter's regions from the true obstacles, not LiDAR-bounded
 ``filter_unbounded``      the filter reads LiDAR as the planner does (no bearing-error bound)
+``filter_bin``            the filter bounds a LiDAR object's bearing by its whole bin
+``filter_aliasing``       the filter bounds it by the neighbour bins' aliasing (exact for an
+                          isolated object; semdp/embedded/shield.py)
 ``no_filter``             no low-level filter (the thesis' plain follower; cost allowed here:
                           it measures the price, it is not a mode to ship)
 ``gt_all``                planner and filter both from the true obstacles
@@ -60,8 +63,12 @@ FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
     "configured": ((), "as configured: the zoo's protocol"),
     "planner_gt": (("perception=gt",), "planner from true obstacles"),
     "filter_gt": (("env.eval_wrapper.shield.perception=gt",), "filter from true obstacles"),
-    "filter_unbounded": (("env.eval_wrapper.shield.lidar_bearing_bound=false",),
+    "filter_unbounded": (("env.eval_wrapper.shield.lidar_bearing_bound=none",),
                          "filter without the LiDAR bearing bound"),
+    "filter_bin": (("env.eval_wrapper.shield.lidar_bearing_bound=bin",),
+                   "filter's LiDAR bearing bounded by the whole bin"),
+    "filter_aliasing": (("env.eval_wrapper.shield.lidar_bearing_bound=aliasing",),
+                        "filter's LiDAR bearing bounded by the neighbour bins' aliasing"),
     "no_filter": (("env.eval_wrapper.shield=null",), "no low-level filter"),
     "gt_all": (("perception=gt", "env.eval_wrapper.shield.perception=gt"),
                "planner and filter from true obstacles"),

@@ -103,11 +103,18 @@ def episode_time(env: Any) -> float:
 
 @dataclass(frozen=True)
 class LidarFrame:
-    """One 16-bin LiDAR channel with the robot pose it was read from (world frame)."""
+    """One 16-bin LiDAR channel with the robot pose it was read from (world frame).
+
+    ``whole``: the channel as the sensor gave it when ``readings`` has bins removed (the
+    buttons' channel less the goal button's bins), None when ``readings`` is whole. The
+    sensor's readings bound every object's aliasing contributions to its neighbour bins; a
+    removed bin does not.
+    """
 
     readings: np.ndarray
     position: np.ndarray
     heading: float
+    whole: np.ndarray | None = None
 
 
 class ButtonMemory:
@@ -163,7 +170,7 @@ def button_frame(env: Any, obs: np.ndarray, memory: ButtonMemory | None = None
         heading = float(env.robot_heading)
         if memory is not None:
             memory.remember(env, LidarFrame(raw.copy(), position, heading))
-        return LidarFrame(goal_free_button_readings(env, obs), position, heading)
+        return LidarFrame(goal_free_button_readings(env, obs), position, heading, raw)
     return memory.recall(env) if memory is not None else None
 
 

@@ -24,13 +24,29 @@ With ``perception="lidar"`` the obstacles are re-read from the LiDAR at every ch
 buttons, while their channel is blank, from the last lit frame). A LiDAR bin gives an object's
 range exactly but its bearing only to within half a bin (11.25°), so a region placed at the bin
 centre can sit up to ``2 d sin(π/32) ≈ 0.196 d`` from the true object at range ``d``: more than
-the margin beyond 0.26 m. With ``lidar_bearing_bound=True`` (the default) every lit bin is a
-candidate object (an aliasing neighbour of a real object only adds a region farther away or at
-the object's own edge of the sector) and its region grows by that bound, so that a trajectory
-clear of the perceived regions is clear of the true ones; ``False`` is the planner's
-reconstruction (peaks only, bin-centre bearings, no bound). ``"gt"`` reads the simulator.
-Objects the sensor cannot see at all (a farther object of the same kind in the same bin) stay
-outside any LiDAR filter.
+the margin beyond 0.26 m. ``lidar_bearing_bound`` says how the filter bounds that bearing:
+
+* ``"aliasing"`` (the default): every lit bin ``i`` (reading ``s``, range ``d = 3 (1 - s)``) is
+  a candidate object whose bearing is ``(i + α)`` bins from the heading. The sensor writes
+  ``α s`` into bin ``i + 1`` and ``(1 - α) s`` into bin ``i - 1`` and keeps the largest value
+  per bin, so the neighbours' readings ``n₊, n₋`` bound ``α``: ``1 - n₋ / s ≤ α ≤ n₊ / s``
+  (widened by :data:`ALIAS_TOLERANCE` for the observation's float32 rounding). The object lies
+  on the arc of range ``d`` over that interval of bearings; its region is centred on the arc's
+  midpoint and grows by the arc's half chord ``2 d sin(Δ/4)`` (``Δ`` the interval's angle) plus
+  :data:`RANGE_TOLERANCE`. An isolated object's interval is a point (its region is its cost
+  disc), two objects in neighbouring bins widen it up to the whole bin, and a bin whose
+  interval is empty holds no object (it is an aliasing ghost). The buttons' neighbours are read
+  from the whole channel (:attr:`~semdp.embedded.perception.LidarFrame.whole`), not from the
+  channel less the goal button's bins.
+* ``"bin"``: every lit bin's region at the bin centre, grown by the whole bin's bound
+  ``0.196 d`` (what runs recorded with ``lidar_bearing_bound: true`` used).
+* ``"none"``: the planner's reconstruction (peaks only, bin-centre bearings, no bound; recorded
+  runs' ``false``).
+
+Both bounds rest on one law, stated and tested: **an object the filter must see is the largest
+contribution to its own bin** (its reading there is its own ``s``). Objects the sensor cannot
+see at all (a farther object of the same kind in the same bin, or one whose own bin a
+neighbour's alias outshines) stay outside any LiDAR filter. ``"gt"`` reads the simulator.
 
 Contacts (the box, a pillar) are outside the model too: a push can leave the robot in a state
 from which braking is no longer certified. ``fallback`` says what happens then: ``"escape"``
@@ -92,6 +108,16 @@ from sims.safety_gym.perception import BINS
 LIDAR_RANGE = 3.0
 #: Largest distance between an object at range d and its bin-centre reconstruction, per metre.
 BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
+#: How the filter bounds a LiDAR object's bearing (module docstring); ``True`` / ``False`` of
+#: runs recorded before the aliasing bound are ``"bin"`` / ``"none"``.
+BEARING_BOUNDS = ("aliasing", "bin", "none")
+#: Widening of the aliasing interval of ``α``: float32 readings carry a relative rounding of
+#: 6e-8 each, so a ratio of two is off by less than 2e-7.
+ALIAS_TOLERANCE = 1e-6
+#: Added to an aliasing region's radius (m): the range ``3 (1 - s)`` of a float32 reading is off
+#: by less than 3e-7 m.
+RANGE_TOLERANCE = 1e-6
+_RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}
 
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
@@ -125,9 +151,11 @@ class SafetyShield:
             ``"lidar_refined"`` (a planner's mode) is read as ``"lidar"``: the filter bounds
             every lit bin by its own bearing error, refined or not.
         kinds: obstacle kinds filtered against.
-        lidar_bearing_bound: LiDAR only: every lit bin is a candidate and its region grows by
-            the bin's worst-case bearing error (see the module docstring); ``False``: the
-            planner's peak reconstruction as it is.
+        lidar_bearing_bound: LiDAR only, how a lit bin's bearing is bounded
+            (:data:`BEARING_BOUNDS`, module docstring): ``"aliasing"`` (the neighbours'
+            readings bound it), ``"bin"`` (the whole bin), ``"none"`` (the planner's peak
+            reconstruction as it is); ``True`` / ``False`` (configs recorded before the
+            aliasing bound) are ``"bin"`` / ``"none"``.
         fallback: when neither the action nor braking is certified: ``"escape"`` (the best
             one-step clearance among braking and the escape actions) or ``"brake"``.
         kernel: how :meth:`clearance` is evaluated (:data:`KERNELS`): ``"compiled"`` (the
@@ -153,7 +181,7 @@ class SafetyShield:
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
-                 lidar_bearing_bound: bool = True, fallback: str = "escape",
+                 lidar_bearing_bound: str | bool = "aliasing", fallback: str = "escape",
                  kernel: str = "compiled") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
@@ -167,10 +195,14 @@ class SafetyShield:
         bad = [k for k in kinds if k not in OBSTACLE_KINDS]
         if bad:
             raise ValueError(f"unknown obstacle kinds {bad}; valid: {list(OBSTACLE_KINDS)}")
+        bound = _RECORDED_BOUNDS.get(lidar_bearing_bound, lidar_bearing_bound)  # type: ignore[call-overload]
+        if bound not in BEARING_BOUNDS:
+            raise ValueError(f"shield lidar_bearing_bound must be one of {BEARING_BOUNDS}, "
+                             f"got {lidar_bearing_bound!r}")
         self.margin = float(margin)
         self.perception = "lidar" if perception == "lidar_refined" else perception
         self.kinds = tuple(kinds)
-        self.lidar_bearing_bound = bool(lidar_bearing_bound)
+        self.lidar_bearing_bound = bound
         self.fallback = fallback
         self.kernel = kernel
         self.stats = ShieldStats()
@@ -185,6 +217,12 @@ class SafetyShield:
         for kind in self.kinds:
             size = sizes.get(kind, 0.0)
             self._radii[kind] = size + (self._model.extent if kind in _CONTACT_KINDS else 0.0)
+
+    @property
+    def bearing_bound(self) -> str:
+        """:attr:`lidar_bearing_bound` as one of :data:`BEARING_BOUNDS` (filters pickled before
+        the aliasing bound hold ``True`` / ``False``)."""
+        return _RECORDED_BOUNDS.get(self.lidar_bearing_bound, self.lidar_bearing_bound)
 
     def reset_stats(self) -> None:
         """Zero the counters."""
@@ -219,7 +257,7 @@ class SafetyShield:
         """:meth:`cost_regions` and, per row, whether its cost is a contact with the robot's
         outline (its ``R`` then holds the robot's extent) and whether it is a gremlin's orbit
         disc (a moving object's: inside it the gremlin may come, elsewhere on its orbit)."""
-        if self.perception == "lidar" and self.lidar_bearing_bound:
+        if self.perception == "lidar" and self.bearing_bound != "none":
             return self._bounded_lidar_regions(base, obs)
         rows, contact, orbit = [], [], []
         for kind in self.kinds:
@@ -258,31 +296,45 @@ class SafetyShield:
 
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Every lit bin of each kind's LiDAR, grown by its bearing error bound (and the
-        flags of :meth:`_regions`).
+        """Every lit bin of each kind's LiDAR as a region bounding its object's bearing
+        (:attr:`bearing_bound`, module docstring), and the flags of :meth:`_regions`.
 
-        A lit bin's object sits where :func:`~sims.safety_gym.perception.obstacles_from_lidar`
-        (``peaks_only=False``) puts it, computed here with the same operations but without
-        that function's input checks and arrays per channel: this runs at most low-level
-        steps near an obstacle."""
+        ``"bin"``: each region sits where :func:`~sims.safety_gym.perception.obstacles_from_lidar`
+        (``peaks_only=False``) puts the bin's object, computed here with the same operations but
+        without that function's input checks and arrays per channel (this runs at most
+        low-level steps near an obstacle), grown by the whole bin's bearing error."""
         rows: list[tuple[float, float, float]] = []
         contact: list[bool] = []
         orbit: list[bool] = []
         width = 2.0 * math.pi / BINS
+        aliasing = self.bearing_bound == "aliasing"
         for kind, radius, shift, frame in self._lidar_channels(base, obs):
             px, py = (float(v) for v in frame.position)
             heading = float(frame.heading)
             sx, sy = float(shift[0]), float(shift[1])
             touches, moves = kind in _CONTACT_KINDS, kind == "gremlins"
-            for i, reading in enumerate(np.asarray(frame.readings, dtype=np.float64).tolist()):
+            readings = np.asarray(frame.readings, dtype=np.float64).tolist()
+            whole = (readings if frame.whole is None
+                     else np.asarray(frame.whole, dtype=np.float64).tolist())
+            for i, reading in enumerate(readings):
                 if reading <= _MIN_READING:
                     continue
                 dist = (1.0 - reading) * LIDAR_RANGE
-                angle = heading + (i + 0.5) * width
-                x, y = px + dist * math.cos(angle), py + dist * math.sin(angle)
-                dx, dy = x - px, y - py
-                rows.append((x + sx, y + sy,
-                             radius + BEARING_ERROR_PER_METRE * math.sqrt(dx * dx + dy * dy)))
+                if aliasing:
+                    low = max(0.0, 1.0 - whole[i - 1] / reading - ALIAS_TOLERANCE)
+                    high = min(1.0, whole[(i + 1) % BINS] / reading + ALIAS_TOLERANCE)
+                    if low > high:
+                        continue  # no object's own bin: an aliasing ghost
+                    angle = heading + (i + 0.5 * (low + high)) * width
+                    grow = 2.0 * dist * math.sin(0.25 * (high - low) * width) + RANGE_TOLERANCE
+                    rows.append((px + dist * math.cos(angle) + sx,
+                                 py + dist * math.sin(angle) + sy, radius + grow))
+                else:
+                    angle = heading + (i + 0.5) * width
+                    x, y = px + dist * math.cos(angle), py + dist * math.sin(angle)
+                    dx, dy = x - px, y - py
+                    rows.append((x + sx, y + sy,
+                                 radius + BEARING_ERROR_PER_METRE * math.sqrt(dx * dx + dy * dy)))
                 contact.append(touches)
                 orbit.append(moves)
         if not rows:
@@ -300,7 +352,9 @@ class SafetyShield:
         (their frame is the current one and their shift zero); buttons and gremlins go through
         :meth:`_lidar_channels` (the buttons' memory, the orbit)."""
         bound = math.inf
-        shrink = 1.0 - BEARING_ERROR_PER_METRE if self.lidar_bearing_bound else 1.0
+        bounded = self.bearing_bound != "none"
+        shrink = 1.0 - BEARING_ERROR_PER_METRE if bounded else 1.0
+        slack = RANGE_TOLERANCE if self.bearing_bound == "aliasing" else 0.0
         slices = base.obs_slices
         moving = []
         for kind in self.kinds:
@@ -313,7 +367,7 @@ class SafetyShield:
             reading = float(obs[slices[key]].max())
             if reading > 0.0:
                 bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE
-                            - (self._radii[kind] + self.margin))
+                            - (self._radii[kind] + self.margin) - slack)
         if not moving:
             return bound
         position = np.asarray(base.robot_position, dtype=np.float64)
@@ -324,7 +378,7 @@ class SafetyShield:
             if not np.array_equal(frame.position, position):
                 return -math.inf
             bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius
-                        - float(np.linalg.norm(shift)))
+                        - float(np.linalg.norm(shift)) - slack)
         return bound
 
     def clearance(self, state: RobotState, first: np.ndarray, regions: np.ndarray) -> float:
