@@ -254,7 +254,9 @@ class Algorithm(ABC):
         tmp.replace(path)
 
     def load_checkpoint(self, path: Path) -> None:
-        """Load a checkpoint written by :meth:`save_checkpoint`."""
+        """Load a checkpoint written by :meth:`save_checkpoint`: unpickled whole (it holds the
+        envs), so only your own runs' checkpoints are to be loaded; shared policies travel as
+        ``policy.pt`` (:mod:`semdp.common.policy_files`)."""
         self.load_state_dict(torch.load(path, weights_only=False)["algo"])
 
     def learn(

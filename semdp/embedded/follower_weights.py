@@ -8,6 +8,8 @@ from typing import Any
 
 import torch
 
+from semdp.common.policy_files import load_data
+
 
 def export_follower(
     actor_state: dict[str, Any], meta: dict[str, Any], path: str | Path
@@ -20,14 +22,15 @@ def export_follower(
 
 
 def load_follower_actor(path: str | Path):
-    """Load a follower exported by :func:`export_follower`; returns (actor, metadata)."""
+    """Load a follower exported by :func:`export_follower` (as data, never running code the
+    file carries: :mod:`semdp.common.policy_files`); returns (actor, metadata)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(
             f"follower weights not found at {path}; train them with the command in "
             "semdp/embedded/weights/README.md"
         )
-    payload = torch.load(path, map_location="cpu", weights_only=False)
+    payload = load_data(path, "follower weights")
     hidden = list(payload["hidden_sizes"])
     activation = {"relu": torch.nn.ReLU, "tanh": torch.nn.Tanh}[payload.get("activation", "relu")]
     layers: list[torch.nn.Module] = []

@@ -13,6 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from semdp.algos.base import CHECKPOINT_NAME, POLICY_NAME, Algorithm
 from semdp.build import build_algorithm
+from semdp.common.policy_files import PolicyFileError, load_data
 from semdp.run_config import load_run_config
 
 
@@ -30,9 +31,13 @@ def load_trained(
         cfg: the config to build from (e.g. the saved one with evaluation-time changes);
             ``None`` = the run's ``config.yaml``.
 
+    The checkpoint, when present, is unpickled whole (it holds the environments): trust it as
+    your own run's only. ``policy.pt`` is read as data (:mod:`semdp.common.policy_files`).
+
     Raises:
         ValueError: ``run_dir`` lacks ``config.yaml`` or both the checkpoint and the policy, or
             they were written by another algorithm than the config's.
+        PolicyFileError: a ``policy.pt`` that is not plain data, or is empty or truncated.
     """
     run_dir = Path(run_dir)
     ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
@@ -49,11 +54,16 @@ def load_trained(
         check_checkpoint_fits(algo, state, cfg)
         algo.load_state_dict(state)
         return algo, cfg
-    saved = torch.load(policy, weights_only=False)
-    if saved["algorithm"] != type(algo).__name__:
+    saved = load_data(policy, "policy")
+    if saved.get("algorithm") != type(algo).__name__:
         raise ValueError(f"{POLICY_NAME} was written by {saved['algorithm']}, config.yaml "
                          f"builds {type(algo).__name__}")
-    algo.load_policy_state(saved["policy"])
+    try:
+        algo.load_policy_state(saved["policy"])
+    except (KeyError, RuntimeError) as exc:
+        text = " ".join(str(exc).split())[:300]
+        raise PolicyFileError(f"{policy}: does not fit the network config.yaml builds "
+                              f"({text})") from None
     algo.epoch, algo.env_steps = int(saved["epoch"]), int(saved["env_steps"])
     return algo, cfg
 

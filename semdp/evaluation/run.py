@@ -24,6 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from semdp.algos.base import CHECKPOINT_NAME, EVAL_SEED_OFFSET, POLICY_NAME, Algorithm
 from semdp.common.logger import write_metrics
+from semdp.common.policy_files import PolicyFileError
 from semdp.evaluation.config_edits import edited_config
 from semdp.evaluation.environment import build_evaluation_env
 from semdp.evaluation.episodes import play_episode, summarise
@@ -69,6 +70,8 @@ def episode_seeds(options: EvalOptions, cfg: DictConfig) -> list[int]:
 def _load(run_dir: Path, cfg: DictConfig) -> Algorithm:
     try:
         algo, _ = load_trained(run_dir, cfg)
+    except PolicyFileError as exc:
+        raise EvalError(str(exc)) from None
     except (ValueError, TypeError, KeyError, InstantiationException) as exc:
         text = " ".join(str(exc).split())
         raise EvalError(text if "checkpoints/" in text else

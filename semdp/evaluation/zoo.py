@@ -20,8 +20,9 @@ PREFIX = "zoo:"
 INDEX = REFERENCE_DIR / "zoo.yaml"
 
 
-def entries(index: Path = INDEX) -> dict[str, Path]:
-    """Every entry: name -> run directory."""
+def entries(index: Path | None = None) -> dict[str, Path]:
+    """Every entry of ``index`` (default :data:`INDEX`): name -> run directory."""
+    index = INDEX if index is None else index
     if not index.is_file():
         return {}
     table = OmegaConf.to_container(OmegaConf.load(index))
@@ -30,7 +31,7 @@ def entries(index: Path = INDEX) -> dict[str, Path]:
     return {str(name): index.parent / str(path) for name, path in table.items()}
 
 
-def resolve(argument: str, index: Path = INDEX) -> tuple[Path, Path | None]:
+def resolve(argument: str, index: Path | None = None) -> tuple[Path, Path | None]:
     """``(run dir, output root)`` of a ``semdp-eval`` target: a run directory (output root
     ``None``: beside the run) or ``zoo:<name>`` (output root ``outputs/eval/<name>``).
 
@@ -40,6 +41,7 @@ def resolve(argument: str, index: Path = INDEX) -> tuple[Path, Path | None]:
     if not argument.startswith(PREFIX):
         return Path(argument), None
     name = argument[len(PREFIX):]
+    index = INDEX if index is None else index
     known = entries(index)
     if name not in known:
         raise EvalError(f"no zoo entry {name!r}; known: {', '.join(sorted(known)) or 'none'} "
