@@ -105,6 +105,8 @@ def test_a_cut_run_continues_without_repeating_finished_cells(
     assert [r["factor"] for r in rows] == ["configured", "no_filter"]
     table = (tmp_path / "price.md").read_text()
     assert "| Push1 | car | `no_filter` | 1 |" in table and (tmp_path / "price.png").is_file()
+    commands = (tmp_path / "commands.txt").read_text().splitlines()
+    assert len(commands) == 2 and all(c in table for c in commands)
 
 
 @pytest.mark.parametrize("argv", [["set=nope"], ["factors=[nope]"], ["runs=[zoo:nope]"],
@@ -113,3 +115,17 @@ def test_bad_arguments_exit_with_one_line(argv: list[str]) -> None:
     with pytest.raises(SystemExit) as info:
         main(argv)
     assert "\n" not in str(info.value) and str(info.value).startswith("semdp-bench")
+
+
+@pytest.mark.parametrize("name", ["push1", "button1"])
+def test_the_committed_price_tables_are_rebuilt_from_their_rows(name: str) -> None:
+    from semdp.benchmarks.price import markdown, read_rows
+    from semdp.paths import REFERENCE_DIR
+
+    folder = REFERENCE_DIR / "price_of_safety" / name
+    committed = (folder / "price.md").read_text()
+    command = committed.split("```bash\n", 1)[1].split("\n```", 1)[0]
+    rows = [r for r in read_rows(folder / "price.csv") if int(r["episodes"]) == 50]
+    assert committed == markdown(rows, command)
+    configured = [r for r in rows if r["factor"] == "configured"]
+    assert len(configured) == 9 and all(r["cost_mean"] == 0.0 for r in configured)

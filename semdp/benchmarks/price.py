@@ -35,7 +35,9 @@ Per policy and factor it records reward, cost, episodes with cost and every inte
 (filter %: low-level commands the filter replaced; filter escape %: of those by an escape
 action rather than braking; plan escape, fallback and rescue %: of the high-level steps).
 Rows are appended to ``price.csv`` under ``out=`` as each cell finishes, so a run cut short is
-continued by the same command with the same ``out=`` (finished cells are skipped).
+continued by the same command with the same ``out=`` (finished cells are skipped); a command
+with other factors or policies adds its rows to the same table, and ``commands.txt`` lists
+every command that wrote to it.
 ``price.md`` then holds, per robot and factor, mean ± standard error over the policies (seeds)
 and the paired difference to ``configured``; ``price.png`` draws those differences.
 """
@@ -184,7 +186,8 @@ def summary_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def markdown(rows: list[dict[str, Any]], command: str) -> str:
-    """``price.md``: the table of :func:`summary_rows` with the factors' meanings."""
+    """``price.md``: the table of :func:`summary_rows` with the factors' meanings, produced by
+    ``command`` (one or several lines)."""
     lines = ["# The price of safety", "", "Produced with:", "", "```bash", command, "```", "",
              "Each committed policy evaluated with one factor changed (the thesis' protocol: mean "
              "action, eps' = 0.5, seeds as `semdp-eval`); reward is the mean over the policies "
@@ -289,10 +292,16 @@ def main(argv: list[str]) -> None:
                   f"{row['cost_mean']:.3f}, filter {100 * row['shield_rate']:.1f} %, "
                   f"{row['wall_s']:.0f} s", flush=True)
     rows = [r for r in read_rows(csv_path) if int(r["episodes"]) == episodes]
-    command = "semdp-bench price " + " ".join(argv)
-    (out / "price.md").write_text(markdown(rows, command.strip()))
+    commands = (out / "commands.txt").read_text().splitlines() if (
+        out / "commands.txt").is_file() else []
+    command = " ".join(["semdp-bench price", *argv])
+    if command not in commands:
+        commands.append(command)
+        (out / "commands.txt").write_text("\n".join(commands) + "\n")
+    table = markdown(rows, "\n".join(commands))
+    (out / "price.md").write_text(table)
     plot(rows, out / "price.png")
-    print(markdown(rows, command.strip()))
+    print(table)
     print(f"wrote {csv_path}, {out / 'price.md'}, {out / 'price.png'}")
 
 

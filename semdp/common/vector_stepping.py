@@ -113,7 +113,6 @@ class VectorStepper:
         space = envs.single_observation_space
         self._obs_shape = (len(self.indices), *space.shape)
         self._obs_dtype = space.dtype
-        self._pending: np.ndarray | None = None
 
     def step(self, actions: np.ndarray) -> StepResult:
         """Step every sub-env with its row of ``actions``; reset those whose episode ended."""
@@ -137,19 +136,6 @@ class VectorStepper:
             obs[i] = o
         return StepResult(obs, rewards, terminated, truncated, costs, final_obs, final_infos)
 
-    # The asynchronous interface of :class:`~semdp.common.async_stepper.AsyncStepper`, done
-    # in place: the step happens in :meth:`step_wait`.
-    def step_async(self, actions: np.ndarray) -> None:
-        """Remember ``actions`` for :meth:`step_wait`."""
-        self._pending = actions
-
-    def step_wait(self) -> StepResult:
-        """Step with the actions given to :meth:`step_async`."""
-        if self._pending is None:
-            raise RuntimeError("step_wait() without step_async()")
-        actions, self._pending = self._pending, None
-        return self.step(actions)
-
     def close(self) -> None:
         """Nothing to release (the vector env stays open)."""
 
@@ -159,7 +145,6 @@ class MergedInfoStepper:
 
     def __init__(self, envs: gym.vector.VectorEnv) -> None:
         self.envs = envs
-        self._pending: np.ndarray | None = None
 
     def step(self, actions: np.ndarray) -> StepResult:
         """``envs.step(actions)`` as a :class:`StepResult`."""
@@ -182,17 +167,6 @@ class MergedInfoStepper:
         return StepResult(np.asarray(obs), np.asarray(rewards, dtype=np.float64),
                           np.asarray(terminated), np.asarray(truncated), costs, final_obs,
                           final_infos)
-
-    def step_async(self, actions: np.ndarray) -> None:
-        """Remember ``actions`` for :meth:`step_wait`."""
-        self._pending = actions
-
-    def step_wait(self) -> StepResult:
-        """Step with the actions given to :meth:`step_async`."""
-        if self._pending is None:
-            raise RuntimeError("step_wait() without step_async()")
-        actions, self._pending = self._pending, None
-        return self.step(actions)
 
     def close(self) -> None:
         """Nothing to release (the vector env stays open)."""
