@@ -129,3 +129,14 @@ def test_the_committed_price_tables_are_rebuilt_from_their_rows(name: str) -> No
     assert committed == markdown(rows, command)
     configured = [r for r in rows if r["factor"] == "configured"]
     assert len(configured) == 9 and all(r["cost_mean"] == 0.0 for r in configured)
+
+
+def test_a_sets_relative_run_is_found_from_another_directory(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from semdp.benchmarks.price import locate
+    from semdp.paths import REPO_ROOT
+
+    monkeypatch.chdir(tmp_path)
+    run = SETS["button1"][0]
+    assert not Path(run).is_absolute() and locate(run) == str(REPO_ROOT / run)
+    assert locate("zoo:x") == "zoo:x" and locate(str(tmp_path)) == str(tmp_path)

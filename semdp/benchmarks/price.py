@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from semdp.benchmarks.arguments import BenchArgumentError, as_choices, as_int, as_list, parse_args
-from semdp.paths import REFERENCE_DIR
+from semdp.paths import REPO_ROOT
 
 #: Factor name -> (``semdp-eval`` arguments, what it changes).
 FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
@@ -78,12 +78,12 @@ FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
     "clearance_0.3": (("clearance=0.3",), "planner eps' 0.3 m instead of 0.5 m"),
 }
 ROBOTS = ("point", "car", "mass")
-_BUTTON1 = "semdp_button1/runs/semdp_collect_v4/semdp_{robot}_button1_s{seed}"
-#: Named sets of policies: the Push1 zoo entries and the Button1 reference runs.
+_BUTTON1 = "outputs/reference/semdp_button1/runs/semdp_collect_v4/semdp_{robot}_button1_s{seed}"
+#: Named sets of policies: the Push1 zoo entries and the Button1 reference runs (a relative
+#: path is looked up from the working directory, else from the repository root).
 SETS: dict[str, tuple[str, ...]] = {
     "push1": tuple(f"zoo:semdp_{r}_push1_s{s}" for r in ROBOTS for s in range(3)),
-    "button1": tuple(str(REFERENCE_DIR / _BUTTON1.format(robot=r, seed=s))
-                     for r in ROBOTS for s in range(3)),
+    "button1": tuple(_BUTTON1.format(robot=r, seed=s) for r in ROBOTS for s in range(3)),
 }
 #: Columns of ``price.csv`` (one row per policy and factor).
 COLUMNS = ("run", "robot", "task", "seed", "factor", "episodes", "return_mean", "return_std",
@@ -103,6 +103,14 @@ class Cell:
     episodes: int
 
 
+def locate(run: str) -> str:
+    """``run`` as :func:`~semdp.evaluation.run.play_run` takes it: a zoo entry or an existing
+    path as given, a relative path missing here taken from the repository root."""
+    if run.startswith("zoo:") or Path(run).is_absolute() or Path(run).exists():
+        return run
+    return str(REPO_ROOT / run)
+
+
 def evaluate_cell(cell: Cell) -> dict[str, Any]:
     """The ``price.csv`` row of ``cell`` (its evaluation episodes played, nothing written)."""
     import torch
@@ -112,7 +120,7 @@ def evaluate_cell(cell: Cell) -> dict[str, Any]:
 
     torch.set_num_threads(1)
     arguments = [*FACTORS[cell.factor][0], f"episodes={cell.episodes}"]
-    played = play_run(cell.run, arguments)
+    played = play_run(locate(cell.run), arguments)
     ev = summarise(played.episodes)
     cfg = played.cfg
     env_name = str(cfg.get("env_name") or "")
@@ -271,7 +279,7 @@ def main(argv: list[str]) -> None:
     from semdp.evaluation.zoo import resolve
     for run in runs:
         try:
-            path, _ = resolve(run)
+            path, _ = resolve(locate(run))
         except EvalError as exc:
             raise BenchArgumentError(f"semdp-bench price: {exc}") from None
         if not path.is_dir():
