@@ -68,7 +68,7 @@ def test_the_zoo_table_averages_a_methods_seeds_per_env(tmp_path: Path) -> None:
     table = zoo_table(entry_rows(tmp_path / "zoo.yaml"))
     # mean 5, sample standard deviation sqrt(2), standard error sqrt(2) / sqrt(2) = 1
     # the env option's name in the thesis' form (semdp/reporting/names.py)
-    assert "| Ours | CarPush1 | 2 | 5.00 ± 1.00 | 0.00 ± 0.00 |" in table
-    assert "| PPO Lag | CarPush1 | 1 | 1.00 ± – | 0.00 ± – |" in table
+    assert "| Ours | CarPush1 | 200,000 | 2 | 5.00 ± 1.00 | 0.00 ± 0.00 |" in table
+    assert "| PPO Lag | CarPush1 | 200,000 | 1 | 1.00 ± – | 0.00 ± – |" in table
     assert ("| `a` | Ours | CarPush1 | 0 | 200,000 | 4.000 ± 1.000 | 0.000 | 0 / 50 "
             "| 0 / 5000 |") in table

@@ -43,28 +43,29 @@ def entry_rows(index: Path = INDEX) -> list[dict[str, object]]:
 
 
 def zoo_table(rows: Sequence[dict[str, object]]) -> str:
-    """The markdown table: per entry, then per method and env mean ± SE over its entries."""
+    """The markdown table: per entry, then per method, env and training steps mean ± SE over
+    its entries (policies trained for other budgets are not averaged together)."""
     lines = [TITLE, "", "Built by `python -m semdp.reporting.zoo_table` from `zoo.yaml` and each "
              "entry's `eval.json`: 50 single-env episodes, mean action, evaluation seeds "
              "10000-10049 + the run's seed. Training steps are the run's `env_steps` "
              "(high-level steps for a SEMDP run: 10 env steps each).", "",
              "| entry | method | env | seed | training steps | return (± std) | cost | episodes "
              "with cost | fallback plans |", "|---|---|---|---|---|---|---|---|---|"]
-    by_env: dict[tuple[str, str], list[dict[str, object]]] = defaultdict(list)
+    by_env: dict[tuple[str, str, int], list[dict[str, object]]] = defaultdict(list)
     for row in rows:
-        by_env[(str(row["method"]), str(row["env"]))].append(row)
+        by_env[(str(row["method"]), str(row["env"]), int(row["env_steps"]))].append(row)  # type: ignore[call-overload]
         fallbacks = "–" if row["fallbacks"] is None else f"{row['fallbacks']} / {row['plans']}"
         lines.append(f"| `{row['name']}` | {row['method']} | {row['env']} | {row['seed']} | "
                      f"{row['env_steps']:,} "
                      f"| {row['return']:.3f} ± {row['return_std']:.3f} | {row['cost']:.3f} | "
                      f"{row['with_cost']} / {row['episodes']} | {fallbacks} |")
-    lines += ["", "| method | env | entries | return, mean ± SE over seeds | cost, mean ± SE |",
-              "|---|---|---|---|---|"]
-    for (method, env), group in sorted(by_env.items()):
+    lines += ["", "| method | env | training steps | entries | return, mean ± SE over seeds "
+              "| cost, mean ± SE |", "|---|---|---|---|---|---|"]
+    for (method, env, steps), group in sorted(by_env.items()):
         returns = [float(r["return"]) for r in group]  # type: ignore[arg-type]
         costs = [float(r["cost"]) for r in group]  # type: ignore[arg-type]
-        lines.append(f"| {method} | {env} | {len(group)} | {format_cell(returns, len(group))} | "
-                     f"{format_cell(costs, len(group))} |")
+        lines.append(f"| {method} | {env} | {steps:,} | {len(group)} | "
+                     f"{format_cell(returns, len(group))} | {format_cell(costs, len(group))} |")
     return "\n".join(lines) + "\n"
 
 
