@@ -42,16 +42,21 @@ PINNED: dict[str, str] = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2",
                           "OPENBLAS_CORETYPE": "Haswell"}
 
 
-def cpu_vendor() -> str:
-    """``/proc/cpuinfo``'s ``vendor_id`` (``GenuineIntel``, ``AuthenticAMD``), else ``""``."""
+def cpuinfo_field(name: str) -> str:
+    """The first ``name`` field of ``/proc/cpuinfo`` (Linux), else ``""``."""
     try:
         with open("/proc/cpuinfo") as f:
             for line in f:
-                if line.startswith("vendor_id"):
+                if line.startswith(name):
                     return line.split(":", 1)[1].strip()
     except OSError:
         pass
     return ""
+
+
+def cpu_vendor() -> str:
+    """The processor's vendor (``GenuineIntel``, ``AuthenticAMD``), else ``""``."""
+    return cpuinfo_field("vendor_id")
 
 
 def mkl_branch(vendor: str) -> str:

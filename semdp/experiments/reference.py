@@ -27,6 +27,7 @@ from typing import Any
 from omegaconf import OmegaConf
 
 from semdp.experiments.archive import archive_sweep, read_timing
+from semdp.numerics import cpuinfo_field
 from semdp.reporting.tables import parse_compare, parse_marks, write_report
 
 RUNS_DIR = "runs"
@@ -34,14 +35,7 @@ RUNS_DIR = "runs"
 
 def _cpu_model() -> str:
     """The processor's model name (Linux), or the architecture."""
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
+    return cpuinfo_field("model name") or platform.processor() or platform.machine()
 
 
 def this_machine() -> str:
