@@ -24,29 +24,10 @@ With ``perception="lidar"`` the obstacles are re-read from the LiDAR at every ch
 buttons, while their channel is blank, from the last lit frame). A LiDAR bin gives an object's
 range exactly but its bearing only to within half a bin (11.25°), so a region placed at the bin
 centre can sit up to ``2 d sin(π/32) ≈ 0.196 d`` from the true object at range ``d``: more than
-the margin beyond 0.26 m. ``lidar_bearing_bound`` says how the filter bounds that bearing:
-
-* ``"aliasing"`` (the default): every lit bin ``i`` (reading ``s``, range ``d = 3 (1 - s)``) is
-  a candidate object whose bearing is ``(i + α)`` bins from the heading. The sensor writes
-  ``α s`` into bin ``i + 1`` and ``(1 - α) s`` into bin ``i - 1`` and keeps the largest value
-  per bin, so the neighbours' readings ``n₊, n₋`` bound ``α``: ``1 - n₋ / s ≤ α ≤ n₊ / s``
-  (widened by :data:`ALIAS_TOLERANCE` for the observation's float32 rounding). The object lies
-  on the arc of range ``d`` over that interval of bearings; its region is centred on the arc's
-  midpoint and grows by the arc's half chord ``2 d sin(Δ/4)`` (``Δ`` the interval's angle) plus
-  :data:`RANGE_TOLERANCE`. An isolated object's interval is a point (its region is its cost
-  disc), two objects in neighbouring bins widen it up to the whole bin, and a bin whose
-  interval is empty holds no object (it is an aliasing ghost). The buttons' neighbours are read
-  from the whole channel (:attr:`~semdp.embedded.perception.LidarFrame.whole`), not from the
-  channel less the goal button's bins.
-* ``"bin"``: every lit bin's region at the bin centre, grown by the whole bin's bound
-  ``0.196 d`` (what runs recorded with ``lidar_bearing_bound: true`` used).
-* ``"none"``: the planner's reconstruction (peaks only, bin-centre bearings, no bound; recorded
-  runs' ``false``).
-
-Both bounds rest on one law, stated and tested: **an object the filter must see is the largest
-contribution to its own bin** (its reading there is its own ``s``). Objects the sensor cannot
-see at all (a farther object of the same kind in the same bin, or one whose own bin a
-neighbour's alias outshines) stay outside any LiDAR filter. ``"gt"`` reads the simulator.
+the margin beyond 0.26 m. ``lidar_bearing_bound`` says how the filter bounds that bearing
+(:mod:`semdp.embedded.lidar_bounds`: by the neighbour bins' aliasing, the default; by the whole
+bin; or not at all), under one stated law: an object the filter must see is the largest
+contribution to its own bin. ``"gt"`` reads the simulator.
 
 Contacts (the box, a pillar) are outside the model too: a push can leave the robot in a state
 from which braking is no longer certified. ``fallback`` says what happens then: ``"escape"``
@@ -89,6 +70,14 @@ import gymnasium as gym
 import numpy as np
 
 from semdp.embedded.brake_kernel import compiles, kernel_for
+from semdp.embedded.lidar_bounds import (
+    BEARING_BOUNDS,
+    BEARING_ERROR_PER_METRE,
+    LIDAR_RANGE,
+    RANGE_TOLERANCE,
+    RECORDED_BOUNDS,
+    bin_regions,
+)
 from semdp.embedded.perception import (
     GREMLIN_ORBIT,
     OBSTACLE_KINDS,
@@ -102,22 +91,6 @@ from semdp.embedded.perception import (
 )
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
-from sims.safety_gym.perception import BINS
-
-#: Safety Gym's LiDAR range (m), as the reconstruction assumes.
-LIDAR_RANGE = 3.0
-#: Largest distance between an object at range d and its bin-centre reconstruction, per metre.
-BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
-#: How the filter bounds a LiDAR object's bearing (module docstring); ``True`` / ``False`` of
-#: runs recorded before the aliasing bound are ``"bin"`` / ``"none"``.
-BEARING_BOUNDS = ("aliasing", "bin", "none")
-#: Widening of the aliasing interval of ``α``: float32 readings carry a relative rounding of
-#: 6e-8 each, so a ratio of two is off by less than 2e-7.
-ALIAS_TOLERANCE = 1e-6
-#: Added to an aliasing region's radius (m): the range ``3 (1 - s)`` of a float32 reading is off
-#: by less than 3e-7 m.
-RANGE_TOLERANCE = 1e-6
-_RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}
 
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
@@ -137,8 +110,6 @@ _CONTACT_KINDS = ("vases", "pillars", "gremlins", "buttons")
 #: Kinds whose LiDAR frame is more than the current channel: the buttons' (remembered while
 #: blank, less the goal button) and the gremlins' (shifted to the orbit's centre).
 _FRAMED_KINDS = ("buttons", "gremlins")
-#: Readings at or below this are empty bins (``obstacles_from_lidar``'s ``min_reading``).
-_MIN_READING = 1e-6
 #: Each kind's LiDAR observation key.
 _LIDAR_KEYS = {kind: f"{kind}_lidar" for kind in OBSTACLE_KINDS}
 
@@ -152,7 +123,7 @@ class SafetyShield:
             every lit bin by its own bearing error, refined or not.
         kinds: obstacle kinds filtered against.
         lidar_bearing_bound: LiDAR only, how a lit bin's bearing is bounded
-            (:data:`BEARING_BOUNDS`, module docstring): ``"aliasing"`` (the neighbours'
+            (:data:`~semdp.embedded.lidar_bounds.BEARING_BOUNDS`): ``"aliasing"`` (the neighbours'
             readings bound it), ``"bin"`` (the whole bin), ``"none"`` (the planner's peak
             reconstruction as it is); ``True`` / ``False`` (configs recorded before the
             aliasing bound) are ``"bin"`` / ``"none"``.
@@ -195,7 +166,7 @@ class SafetyShield:
         bad = [k for k in kinds if k not in OBSTACLE_KINDS]
         if bad:
             raise ValueError(f"unknown obstacle kinds {bad}; valid: {list(OBSTACLE_KINDS)}")
-        bound = _RECORDED_BOUNDS.get(lidar_bearing_bound, lidar_bearing_bound)  # type: ignore[call-overload]
+        bound = RECORDED_BOUNDS.get(lidar_bearing_bound, lidar_bearing_bound)  # type: ignore[call-overload]
         if bound not in BEARING_BOUNDS:
             raise ValueError(f"shield lidar_bearing_bound must be one of {BEARING_BOUNDS}, "
                              f"got {lidar_bearing_bound!r}")
@@ -222,7 +193,7 @@ class SafetyShield:
     def bearing_bound(self) -> str:
         """:attr:`lidar_bearing_bound` as one of :data:`BEARING_BOUNDS` (filters pickled before
         the aliasing bound hold ``True`` / ``False``)."""
-        return _RECORDED_BOUNDS.get(self.lidar_bearing_bound, self.lidar_bearing_bound)
+        return RECORDED_BOUNDS.get(self.lidar_bearing_bound, self.lidar_bearing_bound)
 
     def reset_stats(self) -> None:
         """Zero the counters."""
@@ -297,46 +268,18 @@ class SafetyShield:
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every lit bin of each kind's LiDAR as a region bounding its object's bearing
-        (:attr:`bearing_bound`, module docstring), and the flags of :meth:`_regions`.
-
-        ``"bin"``: each region sits where :func:`~sims.safety_gym.perception.obstacles_from_lidar`
-        (``peaks_only=False``) puts the bin's object, computed here with the same operations but
-        without that function's input checks and arrays per channel (this runs at most
-        low-level steps near an obstacle), grown by the whole bin's bearing error."""
+        (:func:`~semdp.embedded.lidar_bounds.bin_regions` under :attr:`bearing_bound`), and the
+        flags of :meth:`_regions`."""
         rows: list[tuple[float, float, float]] = []
         contact: list[bool] = []
         orbit: list[bool] = []
-        width = 2.0 * math.pi / BINS
-        aliasing = self.bearing_bound == "aliasing"
+        bound = self.bearing_bound
         for kind, radius, shift, frame in self._lidar_channels(base, obs):
-            px, py = (float(v) for v in frame.position)
-            heading = float(frame.heading)
             sx, sy = float(shift[0]), float(shift[1])
-            touches, moves = kind in _CONTACT_KINDS, kind == "gremlins"
-            readings = np.asarray(frame.readings, dtype=np.float64).tolist()
-            whole = (readings if frame.whole is None
-                     else np.asarray(frame.whole, dtype=np.float64).tolist())
-            for i, reading in enumerate(readings):
-                if reading <= _MIN_READING:
-                    continue
-                dist = (1.0 - reading) * LIDAR_RANGE
-                if aliasing:
-                    low = max(0.0, 1.0 - whole[i - 1] / reading - ALIAS_TOLERANCE)
-                    high = min(1.0, whole[(i + 1) % BINS] / reading + ALIAS_TOLERANCE)
-                    if low > high:
-                        continue  # no object's own bin: an aliasing ghost
-                    angle = heading + (i + 0.5 * (low + high)) * width
-                    grow = 2.0 * dist * math.sin(0.25 * (high - low) * width) + RANGE_TOLERANCE
-                    rows.append((px + dist * math.cos(angle) + sx,
-                                 py + dist * math.sin(angle) + sy, radius + grow))
-                else:
-                    angle = heading + (i + 0.5) * width
-                    x, y = px + dist * math.cos(angle), py + dist * math.sin(angle)
-                    dx, dy = x - px, y - py
-                    rows.append((x + sx, y + sy,
-                                 radius + BEARING_ERROR_PER_METRE * math.sqrt(dx * dx + dy * dy)))
-                contact.append(touches)
-                orbit.append(moves)
+            found = bin_regions(frame, bound)
+            rows += [(x + sx, y + sy, radius + grow) for x, y, grow in found]
+            contact += [kind in _CONTACT_KINDS] * len(found)
+            orbit += [kind == "gremlins"] * len(found)
         if not rows:
             return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
         return (np.array(rows, dtype=np.float64), np.array(contact, dtype=bool),
