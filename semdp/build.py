@@ -19,6 +19,22 @@ class ConfigError(ValueError):
     """A bad configuration value, found before anything is built (the message names the key)."""
 
 
+def _non_finite(node: object, prefix: str = "") -> str | None:
+    """The dotted key of the first NaN or infinity in a resolved config tree, else None."""
+    if isinstance(node, dict):
+        items = node.items()
+    elif isinstance(node, list):
+        items = enumerate(node)
+    else:
+        is_bad = isinstance(node, float) and not math.isfinite(node)
+        return prefix[:-1] if is_bad else None
+    for key, value in items:
+        found = _non_finite(value, f"{prefix}{key}.")
+        if found is not None:
+            return found
+    return None
+
+
 def validate_config(cfg: DictConfig) -> None:
     """Fail fast, naming the offending key, before anything is built."""
 
@@ -28,27 +44,36 @@ def validate_config(cfg: DictConfig) -> None:
             raise ConfigError(f"{key} must be a number, got {value!r}")
         return float(value)
 
+    def integer(key: str, minimum: int) -> None:
+        """A whole number (``1e6`` counts) of at least ``minimum``."""
+        value = number(key)
+        if not math.isfinite(value) or value != int(value) or value < minimum:
+            raise ConfigError(f"{key} must be an integer >= {minimum}, got "
+                              f"{OmegaConf.select(cfg, key)!r}")
+
     if cfg.get("algo") is None or "_target_" not in cfg.algo:
         raise ConfigError("algo must be chosen from conf/algo (e.g. algo=ppo_lag); got none")
     cost_limit = number("cost_limit")
     if not math.isfinite(cost_limit) or cost_limit < 0:
         raise ConfigError(f"cost_limit must be a finite number >= 0, got {cost_limit}")
-    for key in ("total_steps", "algo.steps_per_epoch"):
-        if number(key) <= 0:
-            raise ConfigError(f"{key} must be > 0, got {OmegaConf.select(cfg, key)}")
-    for key in ("eval_every", "eval_episodes", "final_eval_episodes", "checkpoint_every"):
-        if number(key) < 0:
-            raise ConfigError(f"{key} must be >= 0, got {OmegaConf.select(cfg, key)}")
-    if number("seed") < 0:
-        raise ConfigError(f"seed must be >= 0, got {cfg.seed}")
-    if number("torch_threads") < 1:
-        raise ConfigError(f"torch_threads must be >= 1, got {cfg.torch_threads}")
-    if "eval_workers" in cfg and number("eval_workers") < 1:  # absent in older runs' configs
-        raise ConfigError(f"eval_workers must be >= 1, got {cfg.eval_workers}")
-    if number("env.num_envs") < 1:
-        raise ConfigError(f"env.num_envs must be >= 1, got {cfg.env.num_envs}")
+    for key in ("total_steps", "algo.steps_per_epoch", "torch_threads", "env.num_envs"):
+        integer(key, 1)
+    for key in ("eval_every", "eval_episodes", "final_eval_episodes", "checkpoint_every", "seed"):
+        integer(key, 0)
+    if "eval_workers" in cfg:  # absent in older runs' configs
+        integer("eval_workers", 1)
     if not cfg.env.get("id"):
         raise ConfigError("env.id must name a gymnasium id, got none")
+    sizes = cfg.algo.get("hidden_sizes")
+    if sizes is not None and (
+        not OmegaConf.is_list(sizes) or len(sizes) == 0
+        or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in sizes)):
+        shown = OmegaConf.to_container(sizes) if OmegaConf.is_list(sizes) else sizes
+        raise ConfigError(f"algo.hidden_sizes must be a non-empty list of layer widths >= 1, "
+                          f"e.g. [64,64], got {shown!r}")
+    found = _non_finite(OmegaConf.to_container(cfg, resolve=True))
+    if found is not None:
+        raise ConfigError(f"{found} must be a finite number, got {OmegaConf.select(cfg, found)}")
 
 
 def build_algorithm(cfg: DictConfig) -> Algorithm:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import yaml
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 #: ``_target_`` written by earlier versions -> the same class today.
@@ -39,11 +40,23 @@ def rename_targets(node: Any) -> int:
 
 def load_run_config(path: str | Path) -> DictConfig:
     """``OmegaConf.load`` of a run's ``config.yaml`` (or of the run directory holding it) with
-    the moved ``_target_`` paths renamed."""
+    the moved ``_target_`` paths renamed.
+
+    Raises:
+        ValueError: no such file, or one that is not a YAML mapping (one line naming it).
+    """
     path = Path(path)
     if path.is_dir():
         path = path / "config.yaml"
-    cfg = OmegaConf.load(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such run config")
+    try:
+        cfg = OmegaConf.load(path)
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        where = getattr(exc, "problem_mark", None)
+        line = f" (line {where.line + 1})" if where is not None else ""
+        raise ValueError(f"{path}: not a YAML config{line}: "
+                         f"{getattr(exc, 'problem', None) or type(exc).__name__}") from None
     if not isinstance(cfg, DictConfig):
         raise ValueError(f"{path} is not a mapping")
     rename_targets(cfg)

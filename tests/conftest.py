@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -12,6 +15,12 @@ import semdp  # noqa: F401  (before torch: pins the CPU kernels, semdp.numerics)
 import torch
 
 # isort: on
+
+# Checkpoints written by the tests are signed with a key of their own, not the user's
+# (semdp/common/checkpoint_files.py); subprocesses inherit it.
+os.environ["SEMDP_CHECKPOINT_KEY"] = str(Path(tempfile.mkdtemp(prefix="semdp-test-key-"))
+                                         / "checkpoint.key")
+os.environ.pop("SEMDP_TRUST_CHECKPOINTS", None)
 from omegaconf import DictConfig, open_dict
 
 from semdp.common.seeding import seed_everything

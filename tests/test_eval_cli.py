@@ -142,7 +142,8 @@ def _mixed_run(runs: dict[str, Path], tmp_path: Path) -> Path:
     mixed = tmp_path / "mixed"
     (mixed / "checkpoints").mkdir(parents=True)
     shutil.copy(runs["ppo_lag"] / "config.yaml", mixed / "config.yaml")
-    shutil.copy(runs["semdp"] / "checkpoints" / "last.pt", mixed / "checkpoints" / "last.pt")
+    for name in ("last.pt", "last.pt.sig"):  # the account's own, signed
+        shutil.copy(runs["semdp"] / "checkpoints" / name, mixed / "checkpoints" / name)
     return mixed
 
 
@@ -202,9 +203,10 @@ def test_bad_arguments_from_the_console_script(
     assert proc.stderr.startswith("semdp-eval: ") and message in proc.stderr
 
 
-def test_no_arguments_prints_the_usage_and_exits_1() -> None:
+def test_no_arguments_prints_the_usage_in_one_line_and_exits_1() -> None:
     proc = _run(sys.executable, "-m", "semdp.cli.eval", check=False)
-    assert proc.returncode == 1 and proc.stdout.startswith("usage: semdp-eval RUN_DIR")
+    assert proc.returncode == 1 and proc.stdout == ""
+    assert proc.stderr.startswith("semdp-eval: semdp-eval RUN_DIR") and proc.stderr.count("\n") == 1
 
 
 # ---------------------------------------------------------------- shorthands on a saved config

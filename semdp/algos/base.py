@@ -26,6 +26,7 @@ import torch
 from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
+from semdp.common.checkpoint_files import load_checkpoint_file, save_checkpoint_file
 from semdp.common.logger import PhaseTimer, ProgressCSV, write_metrics
 from semdp.common.seeding import get_rng_states, set_rng_states
 from semdp.evaluation.vector_episodes import evaluate_episodes, summarize
@@ -232,32 +233,30 @@ class Algorithm(ABC):
 
     # ----------------------------------------------------------------- the loop
     def save_checkpoint(self, path: Path) -> None:
-        """``torch.save`` of :meth:`state_dict`.
+        """:meth:`state_dict` saved and signed (:mod:`semdp.common.checkpoint_files`).
 
         The vector env is pickled with it so that a resume is exact. An env that cannot be
         pickled (e.g. one holding a closure) is left out with a warning; resuming such a run
         restarts the episodes in progress from a reset seeded by ``(seed, epoch)``, so it
         continues correctly but not bit-for-bit.
         """
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
         state = self.state_dict()
         try:
-            torch.save({"algo": state}, tmp)
+            save_checkpoint_file({"algo": state}, path)
         except (AttributeError, TypeError, pickle.PicklingError) as exc:
             if not self._warned_unpicklable:
                 logger.warning("env cannot be pickled (%s): checkpoints omit the env state; "
                                "a resume will not be bit-identical", exc)
                 self._warned_unpicklable = True
             state["envs"] = None
-            torch.save({"algo": state}, tmp)
-        tmp.replace(path)
+            save_checkpoint_file({"algo": state}, path)
 
     def load_checkpoint(self, path: Path) -> None:
         """Load a checkpoint written by :meth:`save_checkpoint`: unpickled whole (it holds the
-        envs), so only your own runs' checkpoints are to be loaded; shared policies travel as
-        ``policy.pt`` (:mod:`semdp.common.policy_files`)."""
-        self.load_state_dict(torch.load(path, weights_only=False)["algo"])
+        envs), so only this account's own checkpoints are read (their signature is checked
+        first; :mod:`semdp.common.checkpoint_files`); shared policies travel as ``policy.pt``
+        (:mod:`semdp.common.policy_files`)."""
+        self.load_state_dict(load_checkpoint_file(path)["algo"])
 
     def learn(
         self,

@@ -15,6 +15,7 @@ message names the suite and lists the valid keys.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 TRUE = ("1", "true", "yes", "on")
@@ -89,11 +90,14 @@ def as_int(args: Mapping[str, str], key: str, minimum: int | None = None) -> int
 
 
 def as_float(args: Mapping[str, str], key: str) -> float:
-    """``args[key]`` as a float."""
+    """``args[key]`` as a finite float."""
     try:
-        return float(args[key])
+        value = float(args[key])
     except ValueError:
         raise _bad(key, args[key], "a number") from None
+    if not math.isfinite(value):
+        raise _bad(key, args[key], "a finite number")
+    return value
 
 
 def as_bool(args: Mapping[str, str], key: str) -> bool:
@@ -109,6 +113,14 @@ def as_bool(args: Mapping[str, str], key: str) -> bool:
 def as_list(value: str) -> list[str]:
     """``[a,b]`` or ``a,b`` as ``["a", "b"]`` (empty entries dropped)."""
     return [item.strip() for item in value.strip().strip("[]").split(",") if item.strip()]
+
+
+def as_items(args: Mapping[str, str], key: str) -> list[str]:
+    """``args[key]`` as a non-empty list (``[a,b]`` or ``a,b``)."""
+    items = as_list(args[key])
+    if not items:
+        raise _bad(key, args[key], "a non-empty list like [a,b]")
+    return items
 
 
 def as_choices(args: Mapping[str, str], key: str, valid: Sequence[object]) -> list[str]:

@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 import sims  # noqa: F401  (registers the env ids)
-from semdp.benchmarks.arguments import as_float, as_int, as_list, parse_args
+from semdp.benchmarks.arguments import as_float, as_int, as_items, parse_args
 from sims.driving import PurePursuitController, run_episode
 
 ENV_IDS = ("sims/DriveCircle-v0", "sims/DriveTrajectory-v0")
@@ -95,7 +95,7 @@ def evaluate_controller(speeds: list[float], episodes: int) -> list[dict[str, ob
 def main(argv: list[str]) -> None:
     """Run the suite, print both tables, write the CSV."""
     options = parse_args("driving", argv, DEFAULTS)
-    speeds = [as_float({"speeds": v}, "speeds") for v in as_list(options["speeds"])]
+    speeds = [as_float({"speeds": v}, "speeds") for v in as_items(options, "speeds")]
     steps, repeats, episodes = (as_int(options, k, minimum=1)
                                 for k in ("steps", "repeats", "episodes"))
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from semdp.benchmarks.arguments import as_int, as_list, parse_args
+from semdp.benchmarks.arguments import as_choices, as_int, as_list, parse_args
 from semdp.paths import REPO_ROOT
 from solvers.planner import (
     IpoptSettings,
@@ -87,7 +87,7 @@ def _variant_kwargs(name: str) -> dict[str, object]:
 def main(argv: list[str]) -> None:
     """Run the suite and print the table."""
     args = parse_args("planner", argv, DEFAULTS)
-    names = as_list(args["backends"])
+    names = as_choices(args, "backends", [*VARIANTS, *(f"{v}_cont" for v in VARIANTS)])
     n, seed = as_int(args, "n", minimum=1), as_int(args, "seed")
     sizes = [as_int({"batch": b}, "batch", minimum=1) for b in as_list(args["batch"])]
     workers = as_int(args, "workers", minimum=1) if args["workers"] else None

@@ -29,7 +29,7 @@ from typing import Any
 import torch
 from hydra import compose, initialize_config_dir
 
-from semdp.benchmarks.arguments import as_int, as_list, parse_args
+from semdp.benchmarks.arguments import as_int, as_items, parse_args
 from semdp.build import build_algorithm
 from semdp.paths import CONF_DIR, REPO_ROOT
 
@@ -96,7 +96,7 @@ def main(argv: list[str]) -> None:
     rows = [
         measure(args["env"], algo, epochs, steps_per_epoch, args["num_envs"],
                 args["vectorization"], args["parallel_critics"])
-        for algo in as_list(args["algos"])
+        for algo in as_items(args, "algos")
     ]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"training throughput on {platform.node()} ({platform.processor() or 'cpu'}), "

@@ -29,7 +29,8 @@ def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in {"-h", "--help"} or argv[0] not in SUITES:
         given = f"unknown suite {argv[0]!r}; " if argv and argv[0] not in {"-h", "--help"} else ""
-        sys.exit(f"usage: semdp-bench SUITE [args...]\n{given}valid suites: {', '.join(SUITES)}")
+        sys.exit(f"semdp-bench: {given}usage: semdp-bench SUITE [args...], SUITE one of "
+                 f"{', '.join(SUITES)}")
     module = importlib.import_module(SUITES[argv[0]])
     module.main(argv[1:])
 

@@ -33,10 +33,11 @@ def _help() -> str:
 def main(argv: list[str] | None = None) -> None:
     """Console entry point."""
     args = sys.argv[1:] if argv is None else list(argv)
-    if not args or args[0] in ("-h", "--help"):
+    if not args:
+        raise SystemExit(f"semdp-eval: {USAGE.removeprefix('usage: ')}: give a run directory "
+                         "(semdp-eval --help lists the settings)")
+    if args[0] in ("-h", "--help"):
         print(_help())
-        if not args:
-            raise SystemExit(1)
         return
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:

@@ -33,6 +33,7 @@ from hydra.errors import HydraException, InstantiationException
 from hydra.utils import instantiate
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
+from semdp.cli.one_line import discard_set_up, run_app
 from semdp.paths import CONF_DIR
 from semdp.reporting.plan_plots import plot_comparison, plot_plan
 from solvers.planner import Comparison, Planner, PlanResult, compare
@@ -193,16 +194,22 @@ def run_compare(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = ()
     return comparison
 
 
+def _refuse(error: ValueError) -> SystemExit:
+    """One line for bad input; the output directory Hydra set up for it is removed."""
+    discard_set_up(HydraConfig.get().runtime.output_dir, f"{HydraConfig.get().job.name}.log")
+    return SystemExit(f"semdp-plan: {error}")
+
+
 @hydra.main(config_path=str(CONF_DIR), config_name="plan", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    """Hydra entry point of ``semdp-plan``."""
+def app(cfg: DictConfig) -> None:
+    """The Hydra app of ``semdp-plan``."""
     output_dir = Path(HydraConfig.get().runtime.output_dir)
     if cfg.get("backends") is not None:
         overrides = planner_overrides(HydraConfig.get().overrides.task)
         try:
             comparison = run_compare(cfg, output_dir, overrides)
         except ValueError as error:
-            raise SystemExit(f"semdp-plan: {error}") from None
+            raise _refuse(error) from None
         print(comparison.table())
         names = [COMPARE_JSON, COMPARE_CSV, *([COMPARE_FIGURE] if cfg.get("plot", True) else [])]
         for name in names:
@@ -211,11 +218,16 @@ def main(cfg: DictConfig) -> None:
     try:
         result = run(cfg, output_dir)
     except ValueError as error:
-        raise SystemExit(f"semdp-plan: {error}") from None
+        raise _refuse(error) from None
     print(result.summary())
     print(f"wrote {output_dir / RESULT_NAME}")
     if cfg.get("plot", True):
         print(f"wrote {output_dir / FIGURE_NAME}")
+
+
+def main() -> None:
+    """Console entry point (``semdp-plan``): the Hydra app, every error in one line."""
+    run_app(app, "semdp-plan")
 
 
 if __name__ == "__main__":

@@ -28,13 +28,21 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import NoReturn
 
 from semdp.reporting.tables import parse_compare, parse_marks, write_report
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors in one line (argparse prints the usage above them)."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.exit(f"{self.prog}: {message} (semdp-report --help shows the usage)")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Command-line entry point (``semdp-report``)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="semdp-report",
         description="Tables (mean ± SE over seeds), training curves and the ε' trade-off "
         "scatter from a sweep's run directories.",
@@ -59,6 +67,10 @@ def main(argv: list[str] | None = None) -> None:
         "runs stopped there (the --late fraction, else 10%%, of the epochs up to the mark)",
     )
     args = parser.parse_args(argv)
+    if args.digits < 0:
+        parser.error(f"--digits must be >= 0, got {args.digits}")
+    if not 0.0 <= args.late <= 1.0:  # NaN included
+        parser.error(f"--late must be a fraction in [0, 1], got {args.late}")
     out_dir = args.out if args.out is not None else args.sweep_dir[0] / "report"
     try:
         order = [label.strip() for label in args.order.split(",") if label.strip()]

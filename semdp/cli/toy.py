@@ -32,6 +32,7 @@ from hydra.utils import instantiate
 from matplotlib.figure import Figure
 from omegaconf import DictConfig, OmegaConf
 
+from semdp.cli.one_line import discard_set_up, run_app
 from semdp.paths import CONF_DIR
 from solvers.self_paced_lagrangian import (
     GLOBAL_OPTIMUM_VALUE,
@@ -221,12 +222,13 @@ def run(cfg: DictConfig, output_dir: Path) -> dict[str, Any]:
 
 
 @hydra.main(config_path=str(CONF_DIR), config_name="toy", version_base="1.3")
-def main(cfg: DictConfig) -> float:
-    """Hydra entry point; returns the self-paced Lagrangian's final f (a sweeper's objective)."""
+def app(cfg: DictConfig) -> float:
+    """The Hydra app; returns the self-paced Lagrangian's final f (a sweeper's objective)."""
     output_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
         summary = run(cfg, output_dir)
-    except ValueError as error:  # bad input: one line naming the key, no traceback
+    except ValueError as error:  # bad input: one line naming the key, nothing left behind
+        discard_set_up(output_dir, f"{HydraConfig.get().job.name}.log")
         raise SystemExit(f"semdp-toy: {error}") from None
     print(format_table(summary))
     print(
@@ -234,6 +236,11 @@ def main(cfg: DictConfig) -> float:
         f"({summary['wall_time_s']:.1f} s)"
     )
     return float(summary["methods"]["self_paced"]["f"])
+
+
+def main() -> None:
+    """Console entry point (``semdp-toy``): the Hydra app, every error in one line."""
+    run_app(app, "semdp-toy")
 
 
 if __name__ == "__main__":

@@ -30,6 +30,9 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 
 from semdp.algos.base import CHECKPOINT_NAME, Algorithm
 from semdp.build import ConfigError, build_algorithm, validate_config
+from semdp.cli.one_line import discard_set_up, one_line, run_app, traceback_wanted
+from semdp.cli.override_types import wrong_types
+from semdp.common.checkpoint_files import CheckpointError, check_checkpoint_file
 from semdp.common.logger import write_metrics
 from semdp.paths import CONF_DIR
 from semdp.run_config import load_run_config
@@ -96,7 +99,10 @@ def _auto_resume(cfg: DictConfig, run_dir: Path) -> str | dict[str, Any] | None:
     """
     if not (run_dir / "config.yaml").is_file():
         return None
-    saved = load_run_config(run_dir)
+    try:
+        saved = load_run_config(run_dir)
+    except ValueError as exc:
+        raise ConfigError(f"resume=auto: {exc}") from None
     wanted = cfg.copy()
     with open_dict(wanted):
         wanted.algo_name, wanted.env_name = _names(cfg)
@@ -141,7 +147,14 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
         ckpt = run_dir / "checkpoints" / CHECKPOINT_NAME
         if not ckpt.is_file() or not (run_dir / "config.yaml").is_file():
             raise ConfigError(f"resume={resume}: no config.yaml and checkpoints/{CHECKPOINT_NAME}")
-        cfg = load_run_config(run_dir)
+        try:
+            check_checkpoint_file(ckpt)
+        except CheckpointError as exc:
+            raise ConfigError(f"resume={resume}: {exc}") from None
+        try:
+            cfg = load_run_config(run_dir)
+        except ValueError as exc:
+            raise ConfigError(f"resume={resume}: {exc}") from None
         with open_dict(cfg):
             cfg.resume = str(resume)
     validate_config(cfg)
@@ -190,20 +203,31 @@ def run(cfg: DictConfig, run_dir: str | Path) -> dict[str, Any]:
 
 
 @hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="train")
-def main(cfg: DictConfig) -> float | None:
-    """Hydra entry point; returns the final evaluation return (for sweepers)."""
+def app(cfg: DictConfig) -> float | None:
+    """The Hydra app; returns the final evaluation return (for sweepers).
+
+    In a single run, bad input (a bad value, or anything raised before the first epoch) ends it
+    with one line and removes the run directory it had set up; a run that fails while training
+    keeps its directory (``metrics.json``, ``error.txt`` with the traceback, the checkpoint)
+    and names it. In a multirun the error is recorded and the sweep goes on.
+    """
     hydra_cfg = HydraConfig.get()
     multirun = hydra_cfg.mode == RunMode.MULTIRUN
+    output_dir = Path(hydra_cfg.runtime.output_dir)
     try:
-        metrics = run(cfg, hydra_cfg.runtime.output_dir)
+        reason = wrong_types(cfg, "train", hydra_cfg.overrides.task)
+        if reason is not None:
+            raise ConfigError(reason)
+        metrics = run(cfg, output_dir)
     except ConfigError as exc:
         if not multirun:  # one line naming the key, no traceback
+            discard_set_up(output_dir, f"{hydra_cfg.job.name}.log")
             raise SystemExit(f"semdp-train: {exc}") from None
         logger.error("bad config (the sweep continues): %s", exc)
         return None
     except HelperError as exc:  # one line naming the helper; the traceback is in error.txt
         resume = cfg.get("resume")
-        run_dir = resume if resume and resume != "auto" else hydra_cfg.runtime.output_dir
+        run_dir = resume if resume and resume != "auto" else output_dir
         line = (f"{str(exc).splitlines()[0]}; the last checkpoint is kept, continue with: "
                 f"semdp-train resume={run_dir}")
         if not multirun:
@@ -211,12 +235,25 @@ def main(cfg: DictConfig) -> float | None:
         logger.error("run failed (the sweep continues): %s", line)
         return None
     except Exception as exc:
-        if not multirun:
+        if multirun:
+            logger.error("run failed (recorded in metrics.json; the sweep continues): %s", exc)
+            return None
+        if traceback_wanted():
             raise
-        logger.error("run failed (recorded in metrics.json; the sweep continues): %s", exc)
-        return None
+        resume = cfg.get("resume")
+        run_dir = Path(resume) if resume and resume != "auto" else output_dir
+        if not (run_dir / "progress.csv").is_file():  # nothing trained: bad input
+            discard_set_up(output_dir, f"{hydra_cfg.job.name}.log")
+            raise SystemExit(f"semdp-train: {type(exc).__name__}: {one_line(exc)}") from None
+        raise SystemExit(f"semdp-train: {type(exc).__name__}: {one_line(exc)} (traceback in "
+                         f"{run_dir / 'error.txt'})") from None
     ev = metrics.get("eval")
     return None if not ev else float(ev["return_mean"])
+
+
+def main() -> None:
+    """Console entry point (``semdp-train``): the Hydra app, every error in one line."""
+    run_app(app, "semdp-train")
 
 
 if __name__ == "__main__":

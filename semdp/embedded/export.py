@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from semdp.common.checkpoint_files import load_checkpoint_file
 from semdp.embedded.follower_weights import export_follower
 from semdp.run_config import load_run_config
 
@@ -48,14 +49,13 @@ def actor_mean_state(actor_state: dict[str, Any], act_dim: int) -> tuple[dict[st
 
 def export_run(run_dir: str | Path, out: str | Path) -> Path:
     """Write the follower weights of a finished follower-training run to ``out``."""
-    import torch
     from hydra.utils import instantiate
 
     import semdp.envs  # noqa: F401  (registers the sims ids)
 
     run_dir = Path(run_dir)
     cfg = load_run_config(run_dir)
-    ckpt = torch.load(run_dir / "checkpoints" / "last.pt", map_location="cpu", weights_only=False)
+    ckpt = load_checkpoint_file(run_dir / "checkpoints" / "last.pt", map_location="cpu")
     import gymnasium as gym
 
     env = instantiate(cfg.env.wrapper)(gym.make(cfg.env.id))

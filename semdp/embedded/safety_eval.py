@@ -38,6 +38,7 @@ import numpy as np
 from hydra.utils import instantiate
 from omegaconf import OmegaConf
 
+from semdp.common.checkpoint_files import load_checkpoint_file
 from semdp.configs import compose_config
 from semdp.embedded.follower_eval import point_to_polyline_distance
 from semdp.embedded.perception import perceive_obstacles
@@ -75,8 +76,8 @@ def load_sac_policy(run_dir: str | Path, stochastic: bool = False):
 
     run_dir = Path(run_dir)
     cfg = load_run_config(run_dir)
-    state = torch.load(run_dir / "checkpoints" / "last.pt", map_location="cpu",
-                       weights_only=False)["algo"]["actor"]
+    state = load_checkpoint_file(run_dir / "checkpoints" / "last.pt",
+                                 map_location="cpu")["algo"]["actor"]
     obs_dim = int(state["net.0.weight"].shape[1])
     actor = SquashedGaussianActor(obs_dim, 2, tuple(cfg.algo.hidden_sizes))
     actor.load_state_dict(state)

@@ -13,6 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from semdp.algos.base import CHECKPOINT_NAME, POLICY_NAME, Algorithm
 from semdp.build import build_algorithm
+from semdp.common.checkpoint_files import load_checkpoint_file
 from semdp.common.policy_files import PolicyFileError, load_data
 from semdp.run_config import load_run_config
 
@@ -49,8 +50,8 @@ def load_trained(
         cfg = load_run_config(run_dir)
     torch.set_num_threads(int(cfg.get("torch_threads", 1) or 1))
     algo = build_algorithm(cfg)
-    if ckpt.is_file():
-        state = torch.load(ckpt, weights_only=False)["algo"]
+    if not policy.is_file():  # a run stopped before the end: its own (signed) checkpoint
+        state = load_checkpoint_file(ckpt)["algo"]
         check_checkpoint_fits(algo, state, cfg)
         algo.load_state_dict(state)
         return algo, cfg

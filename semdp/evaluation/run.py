@@ -23,6 +23,7 @@ from hydra.errors import InstantiationException
 from omegaconf import DictConfig, OmegaConf
 
 from semdp.algos.base import CHECKPOINT_NAME, EVAL_SEED_OFFSET, POLICY_NAME, Algorithm
+from semdp.common.checkpoint_files import CheckpointError
 from semdp.common.logger import write_metrics
 from semdp.common.policy_files import PolicyFileError
 from semdp.evaluation.config_edits import edited_config
@@ -70,7 +71,7 @@ def episode_seeds(options: EvalOptions, cfg: DictConfig) -> list[int]:
 def _load(run_dir: Path, cfg: DictConfig) -> Algorithm:
     try:
         algo, _ = load_trained(run_dir, cfg)
-    except PolicyFileError as exc:
+    except (PolicyFileError, CheckpointError) as exc:
         raise EvalError(str(exc)) from None
     except (ValueError, TypeError, KeyError, InstantiationException) as exc:
         text = " ".join(str(exc).split())
@@ -122,7 +123,10 @@ def play_run(run_dir: str | Path, arguments: list[str] | tuple[str, ...]) -> Pla
     run_dir, out_root = resolve(str(run_dir))
     check_run_dir(run_dir)
     options = parse_arguments(list(arguments))
-    saved = load_run_config(run_dir)
+    try:
+        saved = load_run_config(run_dir)
+    except ValueError as exc:
+        raise EvalError(str(exc)) from None
     cfg = edited_config(saved, options)
     seeds = episode_seeds(options, cfg)
     start = time.perf_counter()
