@@ -8,6 +8,7 @@ none added to the run directory it read. A few cases run the installed console s
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -160,7 +161,8 @@ CORRUPT: dict[str, Callable[[Path, Path], None]] = {
     "another robot's policy": lambda run, _: shutil.copy(
         entries()["semdp_car_push1_s0"] / "policy.pt", run / "policy.pt"),
     "another network size": lambda run, _: (run / "config.yaml").write_text(
-        (run / "config.yaml").read_text().replace("- 256\n", "- 64\n")),
+        re.sub(r"(hidden_sizes:\n)(?:\s+- \d+\n)+", r"\1  - 64\n  - 64\n",
+               (run / "config.yaml").read_text(), count=1)),
     "no policy.pt": lambda run, _: (run / "policy.pt").unlink(),
     "config.yaml not YAML": lambda run, _: (run / "config.yaml").write_text("a: [\n"),
     "no config.yaml": lambda run, _: (run / "config.yaml").unlink(),

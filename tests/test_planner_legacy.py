@@ -24,7 +24,7 @@ from solvers.planner import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-SAVED_RUN = ROOT / "outputs" / "reference" / "semdp_converged" / "point_push1_s0"
+SAVED_RUN = ROOT / "outputs" / "reference" / "archive" / "semdp_converged" / "point_push1_s0"
 PROBLEM = ([0.0, 0.0], [2.5, 1.0], [[1.0, 0.3], [0.4, -0.8], [1.8, 1.2]])
 
 

@@ -31,7 +31,7 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
     base = _edited("configured")
     wrapper = base.env.eval_wrapper
     assert (wrapper.perception, wrapper.shield.perception) == ("lidar", "lidar")
-    assert wrapper.shield.lidar_bearing_bound is True and wrapper.planner.clearance == 0.5
+    assert wrapper.shield.lidar_bearing_bound == "aliasing" and wrapper.planner.clearance == 0.5
     changed = {
         "planner_gt": {"env.eval_wrapper.perception": "gt"},
         "filter_gt": {"env.eval_wrapper.shield.perception": "gt"},

@@ -27,6 +27,18 @@ def test_the_zoo_has_entries_and_each_holds_a_policy_and_its_evaluation() -> Non
         assert recorded["eval"]["episodes"] == len(recorded["episodes"]) == 50, name
 
 
+def test_every_entry_was_evaluated_with_the_thesis_protocol() -> None:
+    """Sec. 3.5: 50 episodes with the mean action; seeds 10000 + i (+ the run's seed where the
+    evaluation offsets them), no evaluation variant, and an override only if it restates that."""
+    for name, run_dir in ZOO.items():
+        recorded = json.loads((run_dir / "eval.json").read_text())
+        settings = recorded["settings"]
+        assert settings["actions"] == "mean" and settings.get("variant") is None, name
+        assert settings["seeds"][1:] == [s + 1 for s in settings["seeds"][:-1]], name
+        assert settings["seeds"][0] - 10000 in (0, recorded["seed"]), name
+        assert set(recorded.get("arguments", [])) <= {"actions=mean"}, name
+
+
 def test_an_unknown_name_lists_the_known_ones() -> None:
     with pytest.raises(EvalError, match=r"no zoo entry 'nope'; known: .*semdp_point_push1_s0"):
         resolve("zoo:nope")

@@ -34,7 +34,7 @@ from which braking is no longer certified. ``fallback`` says what happens then: 
 (the default) takes whichever of braking and the escape actions keeps the largest clearance
 one step ahead, among those that enter no region the robot is outside of now if there are any;
 ``"brake"`` keeps braking. In the one training episode with cost of the
-long-trained Point runs (outputs/reference/semdp_converged/COMMAND.md) a push left braking
+long-trained Point runs (outputs/reference/archive/semdp_converged/COMMAND.md) a push left braking
 uncertified against the LiDAR-bounded regions though not against the true hazard, and the
 escape choice accelerated the robot into the hazard; replayed with ``"brake"`` the episode has
 no cost. Over the safety table both have no episode with cost, and ``"brake"`` replaces

@@ -1,6 +1,6 @@
 """The low-level steps before a cost step: replay one epoch of a SEMDP run with every safety
 filter call and low-level step recorded (thesis §3.5.1-3.5.2, Alg. 2; the investigation of the
-one training episode with cost in outputs/reference/semdp_converged/COMMAND.md).
+one training episode with cost in outputs/reference/archive/semdp_converged/COMMAND.md).
 
     python -m semdp.evaluation.cost_trace <run dir> <out dir> [--steps 60] [--epochs 1]
 

@@ -32,7 +32,7 @@ def entry_rows(index: Path = INDEX) -> list[dict[str, object]]:
         recorded = json.loads((run_dir / "eval.json").read_text())
         summary = recorded["eval"]
         rows.append({
-            "name": name, "method": recorded.get("label", "").removesuffix(" [eval]"),
+            "name": name, "method": recorded.get("label", "").split(" [eval")[0],
             "env": env_name(str(recorded["env"])), "seed": recorded["seed"],
             "env_steps": recorded["env_steps"], "return": summary["return_mean"],
             "return_std": summary["return_std"], "cost": summary["cost_mean"],
