@@ -1,4 +1,4 @@
-"""Evaluation episodes shared between processes (semdp/evaluation/vector_episodes.py): the quota and
+"""Evaluation episodes shared between processes (semdp/common/vector_episodes.py): the quota and
 the groups by hand, the same episodes for any split with a row-wise policy, and the SEMDP
 counters of a helper's sub-envs added back."""
 
@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 from omegaconf import DictConfig, open_dict
 
-from semdp.embedded.artifacts import timing_summary
-from semdp.envs import make_vec_env
-from semdp.evaluation.vector_episodes import (
+from semdp.common.vector_episodes import (
     episode_quota,
     evaluate_episodes,
     summarize,
     worker_groups,
 )
+from semdp.embedded.artifacts import timing_summary
+from semdp.envs import make_vec_env
 from solvers.workers import HelperError, fork_available
 
 needs_fork = pytest.mark.skipif(not fork_available(), reason="needs the fork start method")

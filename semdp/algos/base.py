@@ -29,7 +29,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 from semdp.common.checkpoint_files import load_checkpoint_file, save_checkpoint_file
 from semdp.common.logger import PhaseTimer, ProgressCSV, write_metrics
 from semdp.common.seeding import get_rng_states, set_rng_states
-from semdp.evaluation.vector_episodes import evaluate_episodes, summarize
+from semdp.common.vector_episodes import evaluate_episodes, summarize
 
 logger = logging.getLogger(__name__)
 
@@ -149,7 +149,7 @@ class Algorithm(ABC):
     def evaluate(self, episodes: int, seed: int | None = None,
                  workers: int | None = None) -> dict[str, Any]:
         """Mean-action evaluation on ``eval_envs`` over exactly ``episodes`` episodes, a fixed
-        quota per sub-env (:mod:`semdp.evaluation.vector_episodes`).
+        quota per sub-env (:mod:`semdp.common.vector_episodes`).
 
         Args:
             episodes: how many.

@@ -201,7 +201,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
 
     def counters(self) -> dict[str, float]:
         """The lifetime step counts and :attr:`timing` (an evaluation helper process reports
-        its share with these; :mod:`semdp.evaluation.vector_episodes`)."""
+        its share with these; :mod:`semdp.common.vector_episodes`)."""
         return {**self.timing, "high_level_steps": float(self.high_level_steps),
                 "low_level_steps": float(self.low_level_steps)}
 
