@@ -3,8 +3,8 @@
 The env node of a config (``conf/env``) is the argument of :func:`make_vec_env`; see
 ``docs/design.md`` for the data flow config -> env -> wrapper -> planner -> follower.
 
-Importing this module registers the ``sims/...`` ids (pymunk Safety Gym replica, driving tasks)
-and the test CMDP ``semdp/SpeedLimit-v0``.
+Importing this module imports :mod:`sims`, which registers the ``sims/...`` ids (pymunk Safety Gym
+replica, driving tasks) and the test CMDP ``semdp/SpeedLimit-v0`` (:mod:`sims.testbed`).
 
 Vector envs use gymnasium's ``SyncVectorEnv`` with ``AutoresetMode.SAME_STEP``: when a sub-env's
 episode ends, the returned observation is already the first one of the next episode and the
@@ -25,8 +25,6 @@ import numpy as np
 import numpy.typing as npt
 from hydra.utils import get_class, instantiate
 from omegaconf import OmegaConf
-
-import semdp.testbed  # noqa: F401  (registers semdp/SpeedLimit-v0)
 
 logger = logging.getLogger(__name__)
 

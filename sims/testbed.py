@@ -19,7 +19,7 @@ constrained agent must ration the steps it spends above the speed limit.
 ## Episode Termination
 Terminated when ``v >= crash_speed``; truncated after ``max_episode_steps`` (100, TimeLimit).
 
->>> import gymnasium as gym, semdp.testbed
+>>> import gymnasium as gym, sims
 >>> env = gym.make("semdp/SpeedLimit-v0")
 """
 
@@ -95,6 +95,6 @@ class SpeedLimitEnv(gym.Env):
 if ENV_ID not in gym.registry:
     gym.register(
         id=ENV_ID,
-        entry_point="semdp.testbed:SpeedLimitEnv",
+        entry_point="sims.testbed:SpeedLimitEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
     )
