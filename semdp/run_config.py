@@ -1,8 +1,9 @@
 """A run directory's saved ``config.yaml``, loaded so that it still instantiates today.
 
 Runs keep the config they ran with (``semdp-train`` writes it; resume, ``semdp-eval`` and the
-reference tables read it back). Classes that moved since keep working: every ``_target_`` in
-:data:`RENAMED_TARGETS` is rewritten to the module path of today on load; nothing else changes.
+reference tables read it back). Classes and functions that moved since keep working: every
+``_target_`` in :data:`RENAMED_TARGETS` is rewritten to the module path of today on load; nothing
+else changes.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ RENAMED_TARGETS: dict[str, str] = {
     "semdp.common.lagrange.Lagrange": "semdp.algos.lagrangian.Lagrange",
     "semdp.common.lagrange.PIDLagrange": "semdp.algos.pid_lagrange.PIDLagrange",
     "semdp.common.self_paced.SelfPacedThresholds": "semdp.algos.sp_ppo_lag.SelfPacedThresholds",
+    "semdp.embedded.artifacts.after_training": "semdp.reporting.semdp_run.after_training",
 }
 
 

@@ -413,7 +413,7 @@ def test_bench_episodes_that_had_cost_have_none(robot: str, task: str, policy: s
     extent rather than its outline: 2 and 3 cost steps, the Point's nose and the Car's
     wheels)."""
     from semdp.benchmarks.safety import build_semdp_env, make_policy
-    from semdp.embedded.safety_eval import evaluate_safety
+    from semdp.evaluation.safety_eval import evaluate_safety
 
     env = build_semdp_env(robot, task, config)
     stats = evaluate_safety(env, make_policy(policy, env, seed), 1, seed=seed)

@@ -17,7 +17,7 @@ from semdp.common.vector_episodes import (
     summarize,
     worker_groups,
 )
-from semdp.embedded.artifacts import timing_summary
+from semdp.embedded.timing import timing_summary
 from semdp.envs import make_vec_env
 from solvers.workers import HelperError, fork_available
 

@@ -14,16 +14,16 @@ from hydra.utils import instantiate
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.common.networks import SquashedGaussianActor
 from semdp.configs import compose_node
-from semdp.embedded.export import actor_mean_state
 from semdp.embedded.follower import (
     PolicyFollower,
     ProportionalFollower,
     default_follower,
     follower_observation,
 )
-from semdp.embedded.follower_eval import evaluate_reaching, point_to_polyline_distance
 from semdp.embedded.follower_weights import export_follower, load_follower_actor
 from semdp.embedded.goal_reaching import GoalReachingEnv
+from semdp.evaluation.follower_eval import evaluate_reaching, point_to_polyline_distance
+from semdp.evaluation.follower_export import actor_mean_state
 
 
 def test_goal_reaching_reward_is_eq_3_9_on_a_hand_computed_case() -> None:

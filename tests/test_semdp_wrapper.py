@@ -225,7 +225,7 @@ def test_the_filter_keeps_its_bin_bound_under_a_refined_planner() -> None:
 def test_safety_eval_attributes_violations_to_their_source() -> None:
     from types import SimpleNamespace
 
-    from semdp.embedded.safety_eval import classify_window
+    from semdp.evaluation.safety_eval import classify_window
 
     def plan(waypoints, **flags):
         return SimpleNamespace(waypoints=np.asarray(waypoints, float), feasible=True,

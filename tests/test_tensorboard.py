@@ -15,6 +15,7 @@ import pytest
 from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
+from semdp.cli.run_logging import tensorboard_enabled
 from semdp.common.logger import (
     TIME_SPLIT_COLUMNS,
     TIMING_COLUMNS,
@@ -22,7 +23,6 @@ from semdp.common.logger import (
     TensorBoardRows,
     run_logging,
 )
-from semdp.run_logging import tensorboard_enabled
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -47,9 +47,9 @@ from omegaconf import OmegaConf
 from semdp.benchmarks.arguments import as_int, parse_args
 from semdp.configs import compose_config
 from semdp.embedded.perception import perceive_obstacles, wrong_buttons
-from semdp.embedded.safety_eval import evaluate_safety
 from semdp.embedded.tracking import world_to_ego
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
+from semdp.evaluation.safety_eval import evaluate_safety
 
 ROBOTS = ("point", "car", "mass")
 TASKS = ("Goal1", "Goal2", "Button1", "Button2", "Push1", "Push2")

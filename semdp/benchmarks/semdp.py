@@ -36,7 +36,7 @@ import torch
 from semdp.benchmarks.arguments import BenchArgumentError, as_bool, as_int, parse_args
 from semdp.build import build_algorithm
 from semdp.configs import compose_config
-from semdp.embedded.artifacts import timing_summary
+from semdp.embedded.timing import timing_summary
 from semdp.paths import REPO_ROOT
 
 BENCH_KEYS = {"steps": "4000", "out": "", "random": "false"}

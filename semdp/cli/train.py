@@ -32,11 +32,11 @@ from semdp.algos.base import CHECKPOINT_NAME, Algorithm
 from semdp.build import ConfigError, build_algorithm, validate_config
 from semdp.cli.one_line import discard_set_up, one_line, run_app, traceback_wanted
 from semdp.cli.override_types import wrong_types
+from semdp.cli.run_logging import progress_logging
 from semdp.common.checkpoint_files import CheckpointError, check_checkpoint_file
 from semdp.common.logger import write_metrics
 from semdp.paths import CONF_DIR
 from semdp.run_config import load_run_config
-from semdp.run_logging import progress_logging
 from solvers.workers import HelperError
 
 logger = logging.getLogger(__name__)

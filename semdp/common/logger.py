@@ -39,7 +39,7 @@ COMMON_COLUMNS: tuple[str, ...] = (
     "lagrange_multiplier", "cost_threshold", "eval_return", "eval_cost",
 )
 #: Per-epoch seconds of the Safety-Embedded MDP time split (semdp/README.md, "The wrapper"),
-#: added by :class:`semdp.embedded.epoch_timing.EpochTimeSplit` to SEMDP runs.
+#: added by :class:`semdp.embedded.timing.EpochTimeSplit` to SEMDP runs.
 TIME_SPLIT_COLUMNS: tuple[str, ...] = (
     "time_perception_s", "time_plan_s", "time_follow_s", "time_sim_s",
     "time_learning_and_overhead_s",

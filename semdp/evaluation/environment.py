@@ -11,7 +11,7 @@ from typing import Any
 import gymnasium as gym
 from omegaconf import DictConfig
 
-from semdp.embedded.artifacts import find_semdp
+from semdp.embedded.timing import find_semdp
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
 from semdp.envs import apply_wrapper, make_env, plain_wrapper
 from semdp.evaluation.errors import EvalError

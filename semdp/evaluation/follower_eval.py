@@ -1,7 +1,7 @@
 """Measure a trajectory follower (thesis App. B.2.2, B.2.4).
 
-    python -m semdp.embedded.follower_eval --robot point --trials 200
-    python -m semdp.embedded.follower_eval --robot mass --trials 200      # P-controller
+    python -m semdp.evaluation.follower_eval --robot point --trials 200
+    python -m semdp.evaluation.follower_eval --robot mass --trials 200      # P-controller
 
 Two measurements on the ``sims`` Safety Gym replica:
 

@@ -42,7 +42,7 @@ def _semdp_sources(algo: Any) -> list[RowSource]:
     import the planner and CasADi, are loaded only then)."""
     if "semdp.embedded.wrapper" not in sys.modules:  # no SEMDP env was built
         return []
-    from semdp.embedded.epoch_timing import EpochTimeSplit, has_semdp_env
+    from semdp.embedded.timing import EpochTimeSplit, has_semdp_env
 
     return [EpochTimeSplit(algo)] if has_semdp_env(algo) else []
 

@@ -1,8 +1,8 @@
 """Evaluation-time safety of the SEMDP with a source for every violation (thesis §3.5.1).
 
-    python -m semdp.embedded.safety_eval --env semdp_point_push1 --episodes 50 \
+    python -m semdp.evaluation.safety_eval --env semdp_point_push1 --episodes 50 \
         --run outputs/train/<semdp run dir>
-    python -m semdp.embedded.safety_eval --env semdp_mass_push1 --policy random \
+    python -m semdp.evaluation.safety_eval --env semdp_mass_push1 --policy random \
         planner@env.eval_planner=lm env.perception=gt
 
 The env is the evaluation env of the option ``env=<--env>`` (its ``eval_wrapper``), composed by
@@ -40,9 +40,9 @@ from omegaconf import OmegaConf
 
 from semdp.common.checkpoint_files import load_checkpoint_file
 from semdp.configs import compose_config
-from semdp.embedded.follower_eval import point_to_polyline_distance
 from semdp.embedded.perception import perceive_obstacles
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
+from semdp.evaluation.follower_eval import point_to_polyline_distance
 from semdp.run_config import load_run_config
 
 

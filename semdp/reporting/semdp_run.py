@@ -1,7 +1,8 @@
 """Post-training artefacts of a SEMDP run (thesis §3.6): the time split, training
 curves and a GIF of an evaluation episode with the plans drawn.
 
-Used as the ``post_train`` hook of the ``semdp_*`` env configs (see :func:`after_training`).
+Used as the ``post_train`` hook of the ``semdp_*`` env configs (see :func:`after_training`); the
+time split is read from the SEMDP envs' counters (:mod:`semdp.embedded.timing`).
 """
 
 from __future__ import annotations
@@ -13,49 +14,17 @@ import math
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
-from semdp.embedded.wrapper import TIMING_KEYS, SafetyEmbeddedEnv
+from semdp.embedded.timing import find_semdp, timing_summary
+from semdp.embedded.wrapper import TIMING_KEYS
 
 logger = logging.getLogger(__name__)
 
 
-def find_semdp(env: gym.Env) -> SafetyEmbeddedEnv | None:
-    """The :class:`SafetyEmbeddedEnv` inside a wrapper chain, or ``None``."""
-    while env is not None:
-        if isinstance(env, SafetyEmbeddedEnv):
-            return env
-        env = getattr(env, "env", None)
-    return None
-
-
-def timing_summary(
-    vec_envs: list[gym.vector.VectorEnv | None], elsewhere: bool = False
-) -> dict[str, float]:
-    """Summed wrapper timings and step counts over every sub-env of the given vector envs;
-    with ``elsewhere``, also what their copies did in evaluation helper processes (work done,
-    not this process's wall time)."""
-    totals = dict.fromkeys(TIMING_KEYS, 0.0)
-    totals.update(high_level_steps=0, low_level_steps=0)
-    for vec in vec_envs:
-        for sub in getattr(vec, "envs", []) if vec is not None else []:
-            semdp = find_semdp(sub)
-            if semdp is None:
-                continue
-            for key in TIMING_KEYS:
-                totals[key] += semdp.timing[key]
-            totals["high_level_steps"] += semdp.high_level_steps
-            totals["low_level_steps"] += semdp.low_level_steps
-            if elsewhere:
-                for key, value in semdp.elsewhere.items():
-                    totals[key] = totals.get(key, 0.0) + value
-    return totals
-
-
 def _epoch_split(progress_csv: Path | None) -> dict[str, float] | None:
     """The training wall time's split summed over the ``time_*`` columns of ``progress.csv``
-    (:mod:`semdp.embedded.epoch_timing`), or None when the file or the columns are missing."""
+    (:mod:`semdp.embedded.timing`), or None when the file or the columns are missing."""
     if progress_csv is None or not Path(progress_csv).is_file():
         return None
     with Path(progress_csv).open(newline="") as f:

@@ -1,6 +1,6 @@
 """Export a trained SAC follower from a ``semdp-train`` run directory (thesis App. B.2.4).
 
-    python -m semdp.embedded.export <run dir> semdp/embedded/weights/point.pt
+    python -m semdp.evaluation.follower_export <run dir> semdp/embedded/weights/point.pt
 
 Reads ``<run dir>/config.yaml`` (to rebuild the goal-reaching env and name its sensors) and the
 actor of ``<run dir>/checkpoints/last.pt``; keeps only the mean head of the squashed Gaussian
@@ -94,7 +94,7 @@ def export_run(run_dir: str | Path, out: str | Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """CLI: ``python -m semdp.embedded.export RUN_DIR OUT``."""
+    """CLI: ``python -m semdp.evaluation.follower_export RUN_DIR OUT``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", help="semdp-train run directory of a follower training run")
     parser.add_argument("out", help="weights file to write, e.g. semdp/embedded/weights/point.pt")
