@@ -9,11 +9,12 @@ import pickle
 import gymnasium as gym
 import numpy as np
 import pytest
+from shielded_env import ShieldedEnv
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded.brake_kernel import ClearanceKernel, compiles, kernel_for
 from semdp.embedded.robot_models import RobotState, robot_model
-from semdp.embedded.shield import SafetyShield, ShieldedEnv
+from semdp.embedded.shield import SafetyShield
 
 
 def _plain_clearance(model, s: RobotState, regions: np.ndarray) -> float:

@@ -11,8 +11,10 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from shielded_env import ShieldedEnv
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
+from semdp.embedded.exit_planning import exit_option
 from semdp.embedded.perception import (
     GREMLIN_LAW_TOLERANCE,
     GREMLIN_ORBIT,
@@ -22,7 +24,7 @@ from semdp.embedded.perception import (
     perceive_obstacles,
     wrong_buttons,
 )
-from semdp.embedded.shield import SafetyShield, ShieldedEnv
+from semdp.embedded.shield import SafetyShield
 
 ROBOTS = ("point", "car", "mass")
 #: Full speed ahead (the Car drives along body -y) and the yaw that points it along +x.
@@ -333,7 +335,7 @@ def _holds_by_hand(model: object, state: object, options: list[np.ndarray],
     """Each option held for the exit's steps from ``state`` by the robot model, disc gaps to
     ``regions`` rows ``[x, y, R]``: (the smallest gap to row 1 over the hold: its entry, the
     largest gap to row 0: how far out of it the hold gets)."""
-    from semdp.embedded.shield import EXIT_STEPS
+    from semdp.embedded.exit_planning import EXIT_STEPS
 
     entries, depths = [], []
     for action in options:
@@ -366,7 +368,8 @@ def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
     entries_arr = np.array(entries)
     shield = SafetyShield(margin=0.05, perception="gt")
     assert (entries_arr < -shield.margin).all()
-    choice = shield._exit(model, state, options, regions, contact, orbit, outside)
+    choice = exit_option(model, state, options, regions, contact, orbit, outside,
+                         shield.margin)
     assert entries[choice] == entries_arr.max()
     assert entries_arr[int(np.argmax(depths))] < entries_arr.max() - 0.09  # what depth chose
 
@@ -391,7 +394,8 @@ def test_a_robot_barely_inside_a_region_does_not_creep_into_another() -> None:
     creeping = [i for i, e in enumerate(entries) if -shield.margin <= e < 0.0]
     assert creeping and max(depths[i] for i in creeping) > max(
         d for d, e in zip(depths, entries, strict=True) if e >= 0.0)  # what creeping gains
-    choice = shield._exit(model, state, options, regions, contact, orbit, outside)
+    choice = exit_option(model, state, options, regions, contact, orbit, outside,
+                         shield.margin)
     assert entries[choice] >= 0.0
 
 

@@ -8,10 +8,11 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from shielded_env import ShieldedEnv
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded.robot_models import RobotState, robot_model
-from semdp.embedded.shield import SafetyShield, ShieldedEnv
+from semdp.embedded.shield import SafetyShield
 
 ROBOTS = ("point", "car", "mass")
 

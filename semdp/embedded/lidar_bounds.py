@@ -1,5 +1,5 @@
 """How the safety filter bounds the bearing of an object seen in one LiDAR bin (beyond the
-thesis, §3.5.2; used by :class:`semdp.embedded.shield.SafetyShield`).
+thesis, §3.5.2; used by the regions of :mod:`semdp.embedded.cost_regions`).
 
 A LiDAR bin gives an object's range exactly but its bearing only to within half a bin (11.25°),
 so a region placed at the bin centre can sit up to ``2 d sin(π/32) ≈ 0.196 d`` from the true

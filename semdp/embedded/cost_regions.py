@@ -1,0 +1,217 @@
+"""The cost regions of the low-level safety filter (beyond the thesis, §3.5.2): what
+:class:`~semdp.embedded.shield.SafetyShield` keeps the robot's braking trajectory out of.
+
+Cost regions are discs around the obstacles the planner sees, by kind: hazards cost when the
+root node is inside them; vases, pillars, gremlins and the buttons other than the goal button
+when the robot's outline touches them, i.e. the root within ``object radius + robot extent``
+(:mod:`semdp.embedded.perception`: which button is the goal, the buttons' memory while their
+LiDAR channel is blank after a press, and the grace period). A gremlin's region is the disc of
+its orbit around its home, static under the stated gremlin law
+(:func:`~semdp.embedded.perception.gremlin_orbits`): outside it the robot can never be touched,
+so gremlins need nothing the static kinds do not.
+
+With ``perception="lidar"`` the obstacles are re-read from the LiDAR at every checked step (the
+buttons, while their channel is blank, from the last lit frame). A LiDAR bin gives an object's
+range exactly but its bearing only to within half a bin (11.25°), so a region placed at the bin
+centre can sit up to ``2 d sin(π/32) ≈ 0.196 d`` from the true object at range ``d``: more than
+the margin beyond 0.26 m. ``lidar_bearing_bound`` says how the filter bounds that bearing
+(:mod:`semdp.embedded.lidar_bounds`: by the neighbour bins' aliasing, the default; by the whole
+bin; or not at all), under one stated law: an object the filter must see is the largest
+contribution to its own bin. ``"gt"`` reads the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+
+from semdp.embedded.lidar_bounds import (
+    BEARING_ERROR_PER_METRE,
+    LIDAR_RANGE,
+    RANGE_TOLERANCE,
+    RECORDED_BOUNDS,
+    bin_regions,
+)
+from semdp.embedded.perception import (
+    GREMLIN_ORBIT,
+    OBSTACLE_KINDS,
+    ButtonMemory,
+    LidarFrame,
+    button_frame,
+    episode_time,
+    gremlin_offset,
+    perceive_obstacles,
+)
+
+#: Kinds whose cost is a contact with the robot's outline: their regions add the robot's extent.
+CONTACT_KINDS = ("vases", "pillars", "gremlins", "buttons")
+#: Kinds whose LiDAR frame is more than the current channel: the buttons' (remembered while
+#: blank, less the goal button) and the gremlins' (shifted to the orbit's centre).
+_FRAMED_KINDS = ("buttons", "gremlins")
+#: Each kind's LiDAR observation key.
+_LIDAR_KEYS = {kind: f"{kind}_lidar" for kind in OBSTACLE_KINDS}
+
+
+class CostRegions:
+    """The regions part of :class:`~semdp.embedded.shield.SafetyShield`, which sets its
+    attributes (one object: checkpoints pickle the filter whole).
+
+    Attributes:
+        margin: extra clearance beyond each cost region (m).
+        perception: ``"lidar"`` or ``"gt"``.
+        kinds: obstacle kinds filtered against.
+        lidar_bearing_bound: how a lit LiDAR bin's bearing is bounded (:attr:`bearing_bound`).
+    """
+
+    margin: float
+    perception: str
+    kinds: tuple[str, ...]
+    lidar_bearing_bound: str | bool
+    #: Each filtered kind's cost radius (the robot's extent added to the contact kinds).
+    _radii: dict[str, float]
+    #: The buttons LiDAR channel's memory (:class:`~semdp.embedded.perception.ButtonMemory`),
+    #: made on first use; class-level so that filters pickled before it existed have it.
+    _buttons: ButtonMemory | None = None
+
+    @property
+    def bearing_bound(self) -> str:
+        """:attr:`lidar_bearing_bound` as one of
+        :data:`~semdp.embedded.lidar_bounds.BEARING_BOUNDS` (filters pickled before the
+        aliasing bound hold ``True`` / ``False``)."""
+        return RECORDED_BOUNDS.get(self.lidar_bearing_bound, self.lidar_bearing_bound)
+
+    @property
+    def button_memory(self) -> ButtonMemory:
+        """The memory of the buttons LiDAR channel (forgotten by :meth:`new_episode`)."""
+        if self._buttons is None:
+            self._buttons = ButtonMemory()
+        return self._buttons
+
+    def new_episode(self) -> None:
+        """Forget what belongs to the last episode (the buttons' memory)."""
+        self.button_memory.forget()
+
+    @staticmethod
+    def _orbit(base: Any, kind: str) -> tuple[np.ndarray, float]:
+        """``(shift, extra radius)`` that turn a seen object of ``kind`` into its region's disc:
+        a gremlin's ``-o(t)`` and :data:`~semdp.embedded.perception.GREMLIN_ORBIT` (its orbit
+        around its home); nothing for the static kinds."""
+        if kind != "gremlins":
+            return np.zeros(2), 0.0
+        return -gremlin_offset(episode_time(base)), GREMLIN_ORBIT
+
+    def cost_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
+        """``(m, 3)`` rows ``[x, y, R]``: the cost regions plus the margin."""
+        return self._regions(base, obs)[0]
+
+    def _regions(self, base: Any, obs: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`cost_regions` and, per row, whether its cost is a contact with the robot's
+        outline (its ``R`` then holds the robot's extent) and whether it is a gremlin's orbit
+        disc (a moving object's: inside it the gremlin may come, elsewhere on its orbit)."""
+        if self.perception == "lidar" and self.bearing_bound != "none":
+            return self._bounded_lidar_regions(base, obs)
+        rows, contact, orbit = [], [], []
+        for kind in self.kinds:
+            if kind not in self._radii:
+                continue
+            found = perceive_obstacles(base, obs, self.perception, kinds=(kind,),
+                                       memory=self.button_memory)  # gremlins: orbit discs
+            if len(found):
+                found = np.array(found, dtype=np.float64)
+                found[:, 2] = self._radii[kind] + self.margin + self._orbit(base, kind)[1]
+                rows.append(found)
+                contact.append(np.full(len(found), kind in CONTACT_KINDS))
+                orbit.append(np.full(len(found), kind == "gremlins"))
+        return _stack(rows, contact, orbit)
+
+    def _lidar_channels(self, base: Any, obs: np.ndarray, kinds: tuple[str, ...] | None = None
+                        ) -> Iterator[tuple[str, float, np.ndarray, LidarFrame]]:
+        """``(kind, cost radius + margin, shift, frame)`` of each filtered kind the robot senses
+        (buttons: :func:`~semdp.embedded.perception.button_frame`, possibly remembered; the
+        shift and the radius of a gremlin's orbit: :meth:`_orbit`); ``kinds``: only these of
+        the filtered kinds."""
+        position = np.asarray(base.robot_position, dtype=np.float64)
+        heading = float(base.robot_heading)
+        for kind in self.kinds if kinds is None else kinds:
+            key = f"{kind}_lidar"
+            if kind not in self._radii or key not in base.obs_slices:
+                continue
+            if kind == "buttons":
+                frame = button_frame(base, obs, self.button_memory)
+                if frame is None:
+                    continue
+            else:
+                frame = LidarFrame(obs[base.obs_slices[key]], position, heading)
+            shift, extra = self._orbit(base, kind)
+            yield kind, self._radii[kind] + self.margin + extra, shift, frame
+
+    def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every lit bin of each kind's LiDAR as a region bounding its object's bearing
+        (:func:`~semdp.embedded.lidar_bounds.bin_regions` under :attr:`bearing_bound`), and the
+        flags of :meth:`_regions`."""
+        rows: list[tuple[float, float, float]] = []
+        contact: list[bool] = []
+        orbit: list[bool] = []
+        bound = self.bearing_bound
+        for kind, radius, shift, frame in self._lidar_channels(base, obs):
+            sx, sy = float(shift[0]), float(shift[1])
+            found = bin_regions(frame, bound)
+            rows += [(x + sx, y + sy, radius + grow) for x, y, grow in found]
+            contact += [kind in CONTACT_KINDS] * len(found)
+            orbit += [kind == "gremlins"] * len(found)
+        if not rows:
+            return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
+        return (np.array(rows, dtype=np.float64), np.array(contact, dtype=bool),
+                np.array(orbit, dtype=bool))
+
+    def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
+        """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
+        each kind (exact ranges; the bearing allowance grows with range, hence the factor; a
+        gremlin's orbit centre is its shift away); ``-inf`` when a frame was read from
+        elsewhere (remembered).
+
+        Called before every low-level step: the static kinds read their channel directly
+        (their frame is the current one and their shift zero); buttons and gremlins go through
+        :meth:`_lidar_channels` (the buttons' memory, the orbit)."""
+        bound = math.inf
+        bounded = self.bearing_bound != "none"
+        shrink = 1.0 - BEARING_ERROR_PER_METRE if bounded else 1.0
+        slack = RANGE_TOLERANCE if self.bearing_bound == "aliasing" else 0.0
+        slices = base.obs_slices
+        moving = []
+        for kind in self.kinds:
+            key = _LIDAR_KEYS[kind]
+            if kind not in self._radii or key not in slices:
+                continue
+            if kind in _FRAMED_KINDS:
+                moving.append(kind)
+                continue
+            reading = float(obs[slices[key]].max())
+            if reading > 0.0:
+                bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE
+                            - (self._radii[kind] + self.margin) - slack)
+        if not moving:
+            return bound
+        position = np.asarray(base.robot_position, dtype=np.float64)
+        for _, radius, shift, frame in self._lidar_channels(base, obs, tuple(moving)):
+            reading = float(frame.readings.max())
+            if reading <= 0.0:
+                continue
+            if not np.array_equal(frame.position, position):
+                return -math.inf
+            bound = min(bound, shrink * (1.0 - reading) * LIDAR_RANGE - radius
+                        - float(np.linalg.norm(shift)) - slack)
+        return bound
+
+
+def _stack(rows: list[np.ndarray], contact: list[np.ndarray], orbit: list[np.ndarray]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Region rows ``(m, 3)`` and their contact and orbit flags ``(m,)`` from per-kind lists."""
+    if not rows:
+        return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
+    return np.concatenate(rows), np.concatenate(contact), np.concatenate(orbit)

@@ -1,0 +1,114 @@
+"""The safety filter's way out of a cost region it is inside (beyond the thesis, §3.5.2; the
+escape of :class:`~semdp.embedded.shield.SafetyShield`).
+
+**Inside a contact region** (the Button tasks' grace period: the robot starts it touching the
+button it just pressed, which is a wrong button once the goal moves; a push that left it near a
+pillar) one step then braking barely moves a robot at rest, so the escape cannot tell a way out
+from a turn on the spot. There the escape holds each option for :data:`EXIT_STEPS` steps and
+takes the one that gets farthest out of the static regions it is in (a button, not a gremlin's
+orbit disc, which it may be deep inside), then out of all, with gaps measured from the robot's
+outline at its predicted heading rather than from a disc of its extent, among the options that
+enter no other region by more than the margin, else those that enter least
+(:func:`exit_option`, with the trained runs' episodes that led to each part): with
+goal-seeking subgoals the Point's nose, swinging back into the button as the robot turned away,
+touched it after the grace period in 1 of 60 episodes on Button1 before the hold and the
+outline.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from semdp.embedded.robot_models import RobotModel, RobotState
+
+#: Steps an escape from inside a region is held in :func:`exit_option`'s rollouts: the Button
+#: task's grace period after a press (``BUTTON_RESAMPLING_DELAY``), within which the robot must
+#: be off the button it pressed.
+EXIT_STEPS = 10
+
+
+def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
+                regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray,
+                outside: np.ndarray, margin: float) -> int:
+    """Inside a region (a button just pressed, an orbit disc, a LiDAR region lit around the
+    robot): the option that, held for :data:`EXIT_STEPS` steps, gets farthest out of the
+    static regions it is in (every kind but a gremlin's orbit disc), then farthest out of
+    all the regions it is in, at the best step of its hold; among the options whose hold
+    enters no region the robot is outside of (by more than ``margin`` when it is that deep in
+    a static region) if there are any, else among those that enter least.
+
+    * Static regions first: a static region the robot is in is a cost at hand (a button
+      whose grace period is running out); an orbit disc it is in is a cost only if the
+      gremlin comes round. Ranked together, a disc the robot was deep inside chose: on a
+      trained MassButton1 run the escapes alternated between opposite directions on a
+      just-pressed button until its grace period ended.
+    * Entries up to the margin when the robot is deeper than the margin in a static region
+      (touching a button it pressed, by its perception): the margin is clearance beyond
+      the object's cost radius, so entering another region by less does not reach that
+      object. Without it a Point that had pressed a button 0.58 m from another could leave
+      neither (the way out of the one entered the other's region by 2 cm) and stayed until
+      the grace period ended. Only then: allowed always, a Point inside a hazard's region
+      (not the hazard) crept into a wrong button's, and wedged between the two, slid into
+      the hazard.
+    * The least entry when every option enters: a Point escaping an orbit disc with
+      momentum towards a hazard, every option's hold entering the hazard's region, was
+      otherwise ranked by the disc alone and slid into the hazard.
+
+    A contact region's gap is measured from the robot's outline at its predicted heading
+    (:class:`~semdp.embedded.robot_models.Outline`), not from a disc of its extent: a robot
+    at rest moves a few centimetres in the grace period after a press, and whether it
+    touches the button again depends on where its nose (the Point) or its wheels (the Car)
+    swing, which a disc cannot tell.
+
+    Args:
+        model, state: the bound robot's model and its state now.
+        options: the actions to choose from (braking and the model's escapes).
+        regions: rows ``[x, y, R]`` (the filter's cost regions near the robot).
+        contact, orbit, outside: per row, whether its cost is a contact with the robot's
+            outline, whether it is a gremlin's orbit disc, whether the robot is outside it now.
+        margin: the filter's margin (m).
+    """
+    poses = np.empty((len(options), EXIT_STEPS, 3))
+    for i, a in enumerate(options):
+        s = state
+        for t in range(EXIT_STEPS):
+            s = model.step(s, a)
+            poses[i, t] = (s.x, s.y, s.yaw)
+    flat = poses.reshape(-1, 3)
+    gaps = np.linalg.norm(flat[:, None, :2] - regions[None, :, :2], axis=-1) - regions[:, 2]
+    exiting = contact & ~outside
+    if exiting.any():  # R without the robot's extent, from the outline
+        gaps[:, exiting] = model.outline.distance(
+            flat[:, 0], flat[:, 1], flat[:, 2], regions[exiting, :2]) - (
+            regions[exiting, 2] - model.extent)
+    gaps = gaps.reshape(len(options), EXIT_STEPS, -1)
+    depth = gaps[:, :, ~outside].min(axis=2).max(axis=1)
+    static = ~outside & ~orbit
+    static_depth = (gaps[:, :, static].min(axis=2).max(axis=1) if static.any()
+                    else np.zeros(len(options)))
+    entries = (gaps[:, :, outside].min(axis=(1, 2)) if outside.any()
+               else np.zeros(len(options)))
+    tolerance = margin if _static_depth_now(model, state, regions, contact,
+                                            static) < -margin else 0.0
+    kept = [i for i in range(len(options)) if entries[i] >= -tolerance]
+    if not kept:
+        kept = [i for i in range(len(options)) if entries[i] == entries.max()]
+    return max(kept, key=lambda i: (static_depth[i], depth[i]))
+
+
+def _static_depth_now(model: RobotModel, state: RobotState, regions: np.ndarray,
+                      contact: np.ndarray, static: np.ndarray) -> float:
+    """The robot's gap out of the static regions it is in, where it is now (contact regions
+    from its outline, as in :func:`exit_option`); ``inf`` if it is in none."""
+    if not static.any():
+        return math.inf
+    rows = regions[static]
+    gaps = np.hypot(rows[:, 0] - state.x, rows[:, 1] - state.y) - rows[:, 2]
+    touching = contact[static]
+    if touching.any():
+        gaps[touching] = model.outline.distance(state.x, state.y, state.yaw,
+                                                rows[touching, :2]) - (
+            rows[touching, 2] - model.extent)
+    return float(gaps.min())
