@@ -1,4 +1,19 @@
-"""Package boundaries: solvers and sims are torch-free, Hydra-free libraries."""
+"""Package boundaries: solvers and sims are torch-free, Hydra-free libraries; no import cycles;
+and semdp's packages in layers, each importing only from its own layer or lower ones:
+
+0. libraries: ``solvers``, ``sims``;
+1. common: ``semdp.common`` and the top-level modules every layer uses: the package itself
+   (``semdp/__init__.py``), ``numerics``, ``paths``, ``env_products``, ``configs`` (composing
+   ``conf/``), ``run_config`` (loading a run's saved config) and ``envs`` (the env factory);
+2. methods: ``semdp.algos`` (the algorithms) and ``semdp.embedded`` (the Safety-Embedded MDP at
+   run time, thesis Alg. 2);
+3. runs: ``semdp.build`` (a training run's objects), ``semdp.evaluation`` (loading and
+   measuring runs), ``semdp.reporting`` and ``semdp.experiments`` (tables, figures, a run's
+   artefacts), ``semdp.rendering`` (evaluation videos), ``semdp.benchmarks``;
+4. apps: ``semdp.cli``.
+
+Imports under ``if TYPE_CHECKING:`` do not run and do not count.
+"""
 
 from __future__ import annotations
 
@@ -186,3 +201,84 @@ def test_library_code_does_not_import_the_apps() -> None:
                  for module, targets in import_graph().items()
                  if module not in apps and targets & apps}
     assert not offenders, f"library modules import app modules: {offenders}"
+
+
+# ---------------------------------------------------------------------------- layers
+#: The layers of the module docstring, lowest first. An entry names a module or a package (which
+#: covers its submodules), except the entries of :data:`SPLIT`, which name only the package's
+#: ``__init__``: their submodules are placed one by one.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("solvers", "sims"),
+    ("semdp", "semdp.common", "semdp.numerics", "semdp.paths", "semdp.env_products",
+     "semdp.configs", "semdp.run_config", "semdp.envs"),
+    ("semdp.algos", "semdp.embedded"),
+    ("semdp.build", "semdp.evaluation", "semdp.reporting", "semdp.experiments",
+     "semdp.rendering", "semdp.benchmarks"),
+    ("semdp.cli",),
+)
+SPLIT = frozenset({"semdp"})
+
+
+def layer_of(module: str, layers: tuple[tuple[str, ...], ...] = LAYERS,
+             split: frozenset[str] = SPLIT) -> int | None:
+    """The layer of ``module``: that of the longest entry naming it or a package above it."""
+    best: tuple[int, int] | None = None
+    for index, names in enumerate(layers):
+        for name in names:
+            covers = module == name or (name not in split and module.startswith(name + "."))
+            if covers and (best is None or len(name) > best[0]):
+                best = (len(name), index)
+    return None if best is None else best[1]
+
+
+def layer_violations(graph: dict[str, set[str]], layers: tuple[tuple[str, ...], ...] = LAYERS,
+                     split: frozenset[str] = SPLIT) -> list[str]:
+    """``"<module> (layer i) imports <target> (layer j > i)"`` for every upward import."""
+    found = []
+    for module, targets in sorted(graph.items()):
+        own = layer_of(module, layers, split)
+        for target in sorted(targets):
+            there = layer_of(target, layers, split)
+            if own is not None and there is not None and there > own:
+                found.append(f"{module} (layer {own}) imports {target} (layer {there})")
+    return found
+
+
+def test_every_module_has_a_layer() -> None:
+    unplaced = sorted(m for m in import_graph() if layer_of(m) is None)
+    assert not unplaced, f"modules in no layer (add them to LAYERS and the docstring): {unplaced}"
+
+
+def test_no_module_imports_from_a_higher_layer() -> None:
+    violations = layer_violations(import_graph())
+    assert not violations, "upward imports:\n" + "\n".join(violations)
+
+
+def test_layer_checker_flags_a_planted_upward_import(tmp_path: Path) -> None:
+    """A tree ``lib`` < ``app.core`` < ``app.tools``: an upward import is flagged at module
+    level and inside a function, not under ``if TYPE_CHECKING:``; the split package's
+    ``__init__`` is in the lowest of its layers, and a module no entry names has no layer."""
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "__init__.py").write_text("")
+    (tmp_path / "lib" / "geometry.py").write_text("from app.core import model\n")
+    app = tmp_path / "app"
+    for package in ("core", "tools"):
+        (app / package).mkdir(parents=True)
+        (app / package / "__init__.py").write_text("")
+    (app / "__init__.py").write_text("")
+    (app / "stray.py").write_text("")
+    (app / "core" / "model.py").write_text("import lib.geometry\n")
+    (app / "core" / "loop.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from app.tools import cli\n"
+        "def run():\n    from app.tools.cli import main\n    return main\n")
+    (app / "core" / "typed.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from app.tools import cli\n")
+    (app / "tools" / "cli.py").write_text("from app.core import loop\ndef main(): ...\n")
+    layers = (("lib",), ("app", "app.core"), ("app.tools",))
+    graph = import_graph(("lib", "app"), tmp_path)
+    assert layer_of("app", layers, frozenset({"app"})) == 1
+    assert layer_of("app.stray", layers, frozenset({"app"})) is None
+    assert layer_violations(graph, layers, frozenset({"app"})) == [
+        "app.core.loop (layer 1) imports app.tools.cli (layer 2)",
+        "lib.geometry (layer 0) imports app.core.model (layer 1)",
+    ]
