@@ -9,7 +9,7 @@ replica, driving tasks) and the test CMDP ``semdp/SpeedLimit-v0`` (:mod:`sims.te
 Vector envs use gymnasium's ``SyncVectorEnv`` with ``AutoresetMode.SAME_STEP``: when a sub-env's
 episode ends, the returned observation is already the first one of the next episode and the
 true final observation / info are in ``infos["final_obs"]`` / ``infos["final_info"]``.
-:func:`split_step_infos` resolves both for the algorithms.
+:func:`semdp.common.vector_stepping.merged_step_result` resolves both for the algorithms.
 """
 
 from __future__ import annotations
@@ -21,8 +21,6 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
-import numpy.typing as npt
 from hydra.utils import get_class, instantiate
 from omegaconf import OmegaConf
 
@@ -140,26 +138,3 @@ def make_vec_env(
     for i, sub in enumerate(envs.envs):
         sub.action_space.seed(seed + i)
     return envs
-
-
-def split_step_infos(
-    next_obs: npt.NDArray[Any], infos: Mapping[str, Any], episode_end: npt.NDArray[np.bool_]
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[Any]]:
-    """Per-env step costs and true final observations of a SAME_STEP vector step.
-
-    Returns:
-        ``(costs, final_obs)`` where ``final_obs[i]`` is ``next_obs[i]`` unless env ``i`` ended
-        its episode, in which case it is the last observation of that episode.
-    """
-    n = len(episode_end)
-    costs = np.zeros(n, dtype=np.float64)
-    final_obs = np.array(next_obs, copy=True)
-    if "cost" in infos:
-        mask = infos.get("_cost", np.ones(n, dtype=bool))
-        costs[mask] = np.asarray(infos["cost"], dtype=np.float64)[mask]
-    if np.any(episode_end):
-        final_info = infos["final_info"]
-        for i in np.flatnonzero(episode_end):
-            final_obs[i] = infos["final_obs"][i]
-            costs[i] = float(final_info["cost"][i])
-    return costs, final_obs

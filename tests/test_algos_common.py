@@ -14,7 +14,8 @@ from semdp.algos.lagrangian import Lagrange, combined_advantage
 from semdp.algos.pid_lagrange import PIDLagrange
 from semdp.algos.sp_ppo_lag import SelfPacedThresholds
 from semdp.common.normalization import RunningNormalizer
-from semdp.envs import make_vec_env, split_step_infos
+from semdp.common.vector_stepping import merged_step_result
+from semdp.envs import make_vec_env
 
 
 def test_gae_matches_hand_computed_case_with_termination_and_timeout() -> None:
@@ -173,14 +174,15 @@ def test_running_normalizer_matches_numpy_statistics() -> None:
     assert np.abs(RunningNormalizer((2,), clip=1.0)(data)).max() <= 1.0
 
 
-def test_split_step_infos_recovers_final_observation_and_cost_at_time_out() -> None:
+def test_merged_step_result_recovers_final_observation_and_cost_at_time_out() -> None:
     envs = make_vec_env({"id": "semdp/SpeedLimit-v0", "num_envs": 2}, seed=0)
     envs.reset(seed=0)
     zero = np.zeros((2, 1), dtype=np.float32)
     for _ in range(100):
-        obs, _, term, trunc, infos = envs.step(zero)
+        obs, rewards, term, trunc, infos = envs.step(zero)
         ended = term | trunc
-        costs, final = split_step_infos(obs, infos, ended)
+        step = merged_step_result(obs, rewards, term, trunc, infos)
+        costs, final = step.costs, step.final_observations()
     assert ended.all() and not term.any()  # time-out after 100 steps
     np.testing.assert_allclose(final[:, 1], 1.0)  # final obs has t/T = 1
     np.testing.assert_allclose(obs[:, 1], 0.0)  # returned obs is already the reset one

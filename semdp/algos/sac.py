@@ -33,7 +33,7 @@ from semdp.algos.learner_host import InlineLearner, ProcessLearner
 from semdp.algos.n_step import NStepReturns
 from semdp.algos.replay_shared import SharedReplayBuffer
 from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
-from semdp.envs import split_step_infos
+from semdp.common.vector_stepping import merged_step_result
 from solvers.workers import HelperError
 
 logger = logging.getLogger(__name__)
@@ -219,7 +219,8 @@ class SAC(Algorithm):
                     unit = self.actor.sample(torch.as_tensor(self._obs, dtype=torch.float32))
             next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
             ended = np.logical_or(term, trunc)
-            costs, final_obs = split_step_infos(next_obs, infos, ended)
+            result = merged_step_result(next_obs, rewards, term, trunc, infos)
+            costs, final_obs = result.costs, result.final_observations()
             step = (self._obs, unit.numpy(), rewards, costs, self._flat_obs(final_obs),
                     term.astype(np.float32))
             if self._n_step is not None:

@@ -5,8 +5,8 @@ than a step of the Safety Gym replica; the algorithms only read the step cost, t
 observation of an episode that ended and its success flag. :class:`VectorStepper` makes the same
 calls on the same sub-envs in the same order (``step(actions[i])``, then ``reset()`` without
 arguments where an episode ended), so the sub-envs evolve exactly as under
-``SyncVectorEnv.step``, and returns a :class:`StepResult` with what ``SyncVectorEnv.step`` plus
-:func:`semdp.envs.split_step_infos` would give. Other vector envs go through their own ``step``
+``SyncVectorEnv.step``, and returns a :class:`StepResult` with what ``SyncVectorEnv.step`` read
+by :func:`merged_step_result` would give. Other vector envs go through their own ``step``
 (:class:`MergedInfoStepper`); :func:`stepper_for` picks.
 """
 
@@ -140,6 +140,30 @@ class VectorStepper:
         """Nothing to release (the vector env stays open)."""
 
 
+def merged_step_result(obs: Any, rewards: Any, terminated: Any, truncated: Any,
+                       infos: Mapping[str, Any]) -> StepResult:
+    """What a SAME_STEP vector env's ``step`` returned, as a :class:`StepResult`: the step costs
+    (``info["cost"]``; an ended episode's from its final info), the true last observations and
+    the success entries of the episodes that ended, read from the merged infos."""
+    ended = np.logical_or(terminated, truncated)
+    n = len(ended)
+    costs = np.zeros(n, dtype=np.float64)
+    if "cost" in infos:
+        mask = infos.get("_cost", np.ones(n, dtype=bool))
+        costs[mask] = np.asarray(infos["cost"], dtype=np.float64)[mask]
+    final_obs: dict[int, np.ndarray] = {}
+    final_infos: dict[int, dict[str, Any]] = {}
+    if np.any(ended):
+        final_info = infos["final_info"]
+        for i in np.flatnonzero(ended):
+            final_obs[int(i)] = infos["final_obs"][i]
+            costs[i] = float(final_info["cost"][i])
+            final_infos[int(i)] = {k: final_info[k][i] for k in SUCCESS_KEYS if k in final_info}
+    return StepResult(np.asarray(obs), np.asarray(rewards, dtype=np.float64),
+                      np.asarray(terminated), np.asarray(truncated), costs, final_obs,
+                      final_infos)
+
+
 class MergedInfoStepper:
     """Any SAME_STEP vector env through its own ``step``, read from the merged infos."""
 
@@ -147,26 +171,8 @@ class MergedInfoStepper:
         self.envs = envs
 
     def step(self, actions: np.ndarray) -> StepResult:
-        """``envs.step(actions)`` as a :class:`StepResult`."""
-        obs, rewards, terminated, truncated, infos = self.envs.step(actions)
-        ended = np.logical_or(terminated, truncated)
-        n = len(ended)
-        costs = np.zeros(n, dtype=np.float64)
-        if "cost" in infos:
-            mask = infos.get("_cost", np.ones(n, dtype=bool))
-            costs[mask] = np.asarray(infos["cost"], dtype=np.float64)[mask]
-        final_obs: dict[int, np.ndarray] = {}
-        final_infos: dict[int, dict[str, Any]] = {}
-        if np.any(ended):
-            final_info = infos["final_info"]
-            for i in np.flatnonzero(ended):
-                final_obs[int(i)] = infos["final_obs"][i]
-                costs[i] = float(final_info["cost"][i])
-                final_infos[int(i)] = {k: final_info[k][i] for k in SUCCESS_KEYS
-                                       if k in final_info}
-        return StepResult(np.asarray(obs), np.asarray(rewards, dtype=np.float64),
-                          np.asarray(terminated), np.asarray(truncated), costs, final_obs,
-                          final_infos)
+        """``envs.step(actions)`` as a :class:`StepResult` (:func:`merged_step_result`)."""
+        return merged_step_result(*self.envs.step(actions))
 
     def close(self) -> None:
         """Nothing to release (the vector env stays open)."""
@@ -174,8 +180,8 @@ class MergedInfoStepper:
 
 def stepper_for(envs: gym.vector.VectorEnv) -> VectorStepper | MergedInfoStepper:
     """:class:`VectorStepper` for a SAME_STEP ``SyncVectorEnv``, else :class:`MergedInfoStepper`
-    (also for subclasses of ``SyncVectorEnv``: their own ``step`` may do more, e.g. the SEMDP
-    lockstep env's batched follower)."""
+    (also for subclasses of ``SyncVectorEnv``, whose own ``step`` may do more, and for vector
+    envs built like it, e.g. the SEMDP lockstep env with its batched follower)."""
     if (type(envs) is gym.vector.SyncVectorEnv
             and envs.autoreset_mode == gym.vector.AutoresetMode.SAME_STEP):
         return VectorStepper(envs)
