@@ -39,8 +39,7 @@ drives the rear axle with ``throttle * max_drive_force``, ``throttle < 0`` brake
 (:func:`sims.driving.inputs.parse_action`).
 
 This module is the MDP both tasks share (:class:`DrivingEnv`); the tasks themselves, the
-circle and the random path, are in :mod:`sims.driving.tasks`; :mod:`sims.driving.env` names all
-three classes where they were before the split.
+circle and the random path, are in :mod:`sims.driving.tasks`.
 """
 
 from __future__ import annotations
