@@ -1,6 +1,6 @@
-"""Every planner satisfies the ``Planner`` protocol (solvers/planner/protocol.py), every backend
-the ``Backend`` protocol (solvers/planner/backends/base.py), and the straight-line ablation
-planner refuses a rescue."""
+"""Every planner satisfies the ``Planner`` protocol (solvers/planner/protocol.py) and a planner's
+parts do not (the comparison refuses them), every backend the ``Backend`` protocol
+(solvers/planner/backends/base.py), and the straight-line ablation planner refuses a rescue."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from semdp.embedded.straight import StraightLinePlanner
-from solvers.planner import LMSettings, Planner, PlanResult, SafeTrajectoryPlanner
+from solvers.planner import LMSettings, Planner, PlanResult, SafeTrajectoryPlanner, compare
 from solvers.planner.backends import Backend
 
 PLANNERS = {
@@ -40,8 +40,14 @@ def test_backends_satisfy_the_backend_protocol() -> None:
                       Backend)
 
 
-def test_objects_without_plan_are_not_planners() -> None:
-    assert not isinstance(object(), Planner)
+@pytest.mark.parametrize("part", ["settings", "backend"])
+def test_a_planners_part_given_as_a_planner_is_refused_naming_it(part: str) -> None:
+    """A backend or its settings (parts of a planner, without ``plan``, ``n_waypoints`` and
+    ``clearance``) where a planner belongs: the comparison refuses it in one line."""
+    given = LMSettings() if part == "settings" else SafeTrajectoryPlanner(backend="lm").solver
+    assert not isinstance(given, Planner)
+    with pytest.raises(ValueError, match="planner 'lm' has no plan\\(\\), n_waypoints"):
+        compare([0.0, 0.0], [1.0, 0.0], planners={"lm": given})
 
 
 def test_straight_planner_has_no_rescue() -> None:
