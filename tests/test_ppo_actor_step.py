@@ -1,4 +1,5 @@
-"""PPO's written-out clipped-surrogate step against the autograd step."""
+"""PPO's written-out clipped-surrogate step against the autograd step of PPO's own loss
+(:meth:`semdp.algos.ppo.PPO.actor_loss`)."""
 
 from __future__ import annotations
 
@@ -11,53 +12,57 @@ from omegaconf import DictConfig
 from torch.nn.utils import parameters_to_vector
 
 from semdp.algos.fast.ppo_actor_step import PPOActorStep
+from semdp.algos.ppo import PPO
 from semdp.cli.train import build_algorithm
 from semdp.common.networks import GaussianActor
 from semdp.common.optim import FlatAdam, clip_grad_norm
+from semdp.envs import make_vec_env
 
 
-def _autograd_step(actor: GaussianActor, opt: FlatAdam, obs: torch.Tensor, actions: torch.Tensor,
-                   old: torch.Tensor, adv: torch.Tensor, clip: float, ent: float,
-                   max_norm: float | None) -> float:
-    dist = actor.distribution(obs)
-    ratio = (dist.log_prob(actions).sum(-1) - old).exp()
-    surrogate = torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv)
-    loss = -surrogate.mean() - ent * dist.entropy().sum(-1).mean()
-    opt.zero_grad()
+def _autograd_step(ppo: PPO, obs: torch.Tensor, actions: torch.Tensor, old: torch.Tensor,
+                   adv: torch.Tensor) -> float:
+    """One minibatch step of ``ppo``'s actor on its own loss, through autograd."""
+    loss, _ = ppo.actor_loss(obs, actions, old, adv)
+    ppo.actor_optimizer.zero_grad()
     loss.backward()
-    if max_norm is not None:
-        clip_grad_norm(list(actor.parameters()), max_norm)
-    opt.step()
+    if ppo.max_grad_norm is not None:
+        clip_grad_norm(list(ppo.actor.parameters()), ppo.max_grad_norm)
+    ppo.actor_optimizer.step()
     return float(loss.detach())
 
 
 @pytest.mark.parametrize(("hidden", "activation", "ent", "max_norm"),
                          [((16, 16), "tanh", 0.0, 0.5), ((8,), "relu", 0.01, None)])
-def test_written_step_equals_the_autograd_step(
+def test_written_step_equals_the_autograd_step_of_ppos_loss(
     hidden: tuple[int, ...], activation: str, ent: float, max_norm: float | None
 ) -> None:
+    envs = make_vec_env({"id": "sims/SafetyPointGoal1-v0", "num_envs": 1}, seed=0)
+    ppo = PPO(envs, None, seed=0, steps_per_epoch=64, actor_lr=3e-3, clip_range=0.2,
+              ent_coef=ent, max_grad_norm=max_norm, hidden_sizes=hidden, activation=activation,
+              log_std_init=-0.3, vectorization="sync", parallel_critics=False,
+              gradients="autograd")
+    actor = ppo.actor
     torch.manual_seed(0)
-    actor = GaussianActor(4, 2, hidden, activation, log_std_init=-0.3)
-    obs, actions = torch.randn(64, 4), torch.randn(64, 2)
+    obs, actions = torch.randn(64, ppo.obs_dim), torch.randn(64, ppo.act_dim)
     adv = torch.randn(64)
     with torch.no_grad():  # an "old" policy such that some ratios leave the clip range
         old = actor.log_prob(obs, actions) + 0.3 * torch.randn(64)
+    start = parameters_to_vector(actor.parameters()).detach().clone()
     clone = copy.deepcopy(actor)
-    opt_a = FlatAdam(actor.parameters(), lr=3e-3)
-    opt_w = FlatAdam(clone.parameters(), lr=3e-3)
-    written = PPOActorStep.build(clone, opt_w)
+    written = PPOActorStep.build(clone, FlatAdam(clone.parameters(), lr=3e-3))
     assert written is not None
     ratio = (actor.log_prob(obs, actions) - old).exp()
     assert ((ratio < 0.8) | (ratio > 1.2)).any() and ((ratio > 0.8) & (ratio < 1.2)).any()
     for _ in range(8):
-        loss_a = _autograd_step(actor, opt_a, obs, actions, old, adv, 0.2, ent, max_norm)
-        loss_w, _ = written.step(obs, actions, old, adv, 0.2, ent, max_norm)
+        loss_a = _autograd_step(ppo, obs, actions, old, adv)
+        loss_w, _ = written.step(obs, actions, old, adv, ppo.clip_range, ppo.ent_coef,
+                                 ppo.max_grad_norm)
         assert float(loss_w) == pytest.approx(loss_a, rel=1e-5, abs=1e-7)
     theta_a = parameters_to_vector(actor.parameters()).detach()
     theta_w = parameters_to_vector(clone.parameters()).detach()
-    assert (theta_a - parameters_to_vector(GaussianActor(4, 2, hidden, activation).parameters())
-            ).abs().max() > 1e-3
+    assert (theta_a - start).abs().max() > 1e-3
     torch.testing.assert_close(theta_w, theta_a, rtol=1e-5, atol=1e-6)
+    envs.close()
 
 
 def test_other_optimisers_take_the_autograd_step() -> None:

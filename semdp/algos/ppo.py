@@ -102,6 +102,18 @@ class PPO(OnPolicyAlgorithm):
         self.epoch += 1
         return {**stats, **self.constraint_stats(), **out}
 
+    def actor_loss(self, obs: torch.Tensor, actions: torch.Tensor, old_log_probs: torch.Tensor,
+                   advantages: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(loss, entropy)`` of a minibatch: the clipped surrogate of thesis Eq. 2.6, negated,
+        less ``ent_coef`` times the policy's entropy. The written step
+        (:mod:`semdp.algos.fast.ppo_actor_step`) takes this loss's gradient by hand."""
+        dist = self.actor.distribution(obs)
+        ratio = (dist.log_prob(actions).sum(-1) - old_log_probs).exp()
+        clipped = ratio.clamp(1 - self.clip_range, 1 + self.clip_range)
+        surrogate = torch.min(ratio * advantages, clipped * advantages)
+        entropy = dist.entropy().sum(-1).mean()
+        return -surrogate.mean() - self.ent_coef * entropy, entropy
+
     def _update(self, batch: RolloutBatch) -> dict[str, float]:
         """Clipped-surrogate passes (critics meanwhile in the helper, if any), then critics."""
         critic_job = self.critics.start(batch, skip=self.update_iters)  # None: plain path
@@ -126,13 +138,8 @@ class PPO(OnPolicyAlgorithm):
                         obs[idx], actions[idx], old_log_probs[idx], advs[idx],
                         self.clip_range, self.ent_coef, self.max_grad_norm)
                     continue
-                dist = self.actor.distribution(obs[idx])
-                log_ratio = dist.log_prob(actions[idx]).sum(-1) - old_log_probs[idx]
-                ratio = log_ratio.exp()
-                clipped = ratio.clamp(1 - self.clip_range, 1 + self.clip_range)
-                surrogate = torch.min(ratio * advs[idx], clipped * advs[idx])
-                entropy = dist.entropy().sum(-1).mean()
-                loss_pi = -surrogate.mean() - self.ent_coef * entropy
+                loss_pi, entropy = self.actor_loss(obs[idx], actions[idx], old_log_probs[idx],
+                                                   advs[idx])
                 self.actor_optimizer.zero_grad()
                 loss_pi.backward()
                 if self.max_grad_norm is not None:
