@@ -23,6 +23,7 @@ import math
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -69,9 +70,16 @@ class TrackingStats:
     mean_steps: float
 
 
-def _bind(follower: Follower, env: gym.Env) -> None:
+def _trial_env(follower: Follower, env_id: str, trials: int, seed: int
+               ) -> tuple[gym.Env, Any, np.random.Generator]:
+    """The env of a measurement, its unwrapped base (the follower bound to its sensors) and the
+    generator of the trials' goals."""
+    if trials < 1:
+        raise ValueError(f"trials must be >= 1, got {trials}")
+    env = gym.make(env_id)
     if isinstance(follower, PolicyFollower):
         follower.bind(env.unwrapped.obs_slices)
+    return env, env.unwrapped, np.random.default_rng(seed)
 
 
 def evaluate_reaching(
@@ -85,12 +93,7 @@ def evaluate_reaching(
     seed: int = 0,
 ) -> ReachingStats:
     """Fraction of goals ``distance_range`` away reached within ``radius`` in ``max_steps``."""
-    if trials < 1:
-        raise ValueError(f"trials must be >= 1, got {trials}")
-    env = gym.make(env_id)
-    base = env.unwrapped
-    _bind(follower, env)
-    rng = np.random.default_rng(seed)
+    env, base, rng = _trial_env(follower, env_id, trials, seed)
     successes, steps_needed = 0, []
     for trial in range(trials):
         obs, _ = env.reset(seed=seed + trial)
@@ -128,12 +131,7 @@ def evaluate_tracking(
     seed: int = 0,
 ) -> TrackingStats:
     """Cross-track error while tracking whole planned paths (ground-truth obstacles)."""
-    if trials < 1:
-        raise ValueError(f"trials must be >= 1, got {trials}")
-    env = gym.make(env_id)
-    base = env.unwrapped
-    _bind(follower, env)
-    rng = np.random.default_rng(seed)
+    env, base, rng = _trial_env(follower, env_id, trials, seed)
     errors, first_k, lengths, reached = [], [], [], 0
     for trial in range(trials):
         obs, _ = env.reset(seed=seed + trial)
