@@ -15,7 +15,7 @@ from semdp.reporting.per_seed import main, per_seed_table
 from semdp.reporting.runs import load_runs
 
 #: Table 3.1's baselines (with their policies) and the earlier runs it replaced.
-FOLDERS = ["semdp_push_8e6_policies", "semdp_push_8e6_seeds"]
+FOLDERS = ["semdp_push_8e6_policies", "archive/semdp_push_8e6_seeds"]
 #: The command of the folders' COMMAND.md.
 ARGUMENTS = ["--title", "Table 3.1 baselines at 8e6 env steps: per seed",
              "--order", "CPO,PPO Lag,TRPO Lag", "--late", "0.1"]

@@ -18,7 +18,7 @@ Finds every run directory below each ``SWEEP_DIR`` (one holding ``metrics.json``
 
 Example::
 
-    semdp-report outputs/multirun/2026-11-22_10-00-00 --out outputs/reference/semdp_push
+    semdp-report outputs/multirun/semdp_push/laptop/<time> --out outputs/report/semdp_push
     semdp-report outputs/multirun/sp_safety_gym/laptop/<time> --compare SP-PPO-Lag,PPO-Lag
     semdp-report outputs/multirun/sp_driving/laptop/<time> --late 0.1 --at 150000,500000
 """
