@@ -1,5 +1,5 @@
 """Keep a sweep's light run files beside its reference, so that the reference can be rebuilt
-and extended on another machine (outputs/reference/README.md).
+and extended on another machine (outputs/reference/README.md: the layout).
 
 Sweep directories live in git-ignored scratch under ``outputs/``, and a new machine starts
 without them: a reference folder built from them could not be rebuilt with more seeds later.

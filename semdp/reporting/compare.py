@@ -1,6 +1,6 @@
 """Differences between two methods in a report: ``A - B`` per environment and metric, with the
 standard error of the difference and the difference in those standard errors (the form the
-thesis' claims are judged in: outputs/reference/README.md, "Claim by claim")."""
+thesis' claims are judged in: docs/results.md, "The thesis' claims, one by one")."""
 
 from __future__ import annotations
 
