@@ -1,7 +1,8 @@
 """Docs that cannot rot: every repository path the guides name exists, and every ``semdp-*``
 command they show composes.
 
-The pages (``docs/``), the package READMEs and CONTRIBUTING.md are scanned:
+The pages (``docs/``), the README, the package READMEs, ``outputs/reference/README.md`` and
+CONTRIBUTING.md are scanned:
 
 * **paths**: a word in a code span, a fenced block or a link target that starts with one of the
   repository's top-level folders (``semdp/``, ``conf/``, ``outputs/``, ...) must exist. Words
@@ -41,7 +42,8 @@ REFERENCE = ROOT / "outputs" / "reference"
 #: The files whose paths and commands are checked.
 DOC_FILES = sorted(
     [*(ROOT / "docs").rglob("*.md"), ROOT / "semdp" / "README.md", ROOT / "solvers" / "README.md",
-     ROOT / "sims" / "README.md", ROOT / "CONTRIBUTING.md"]
+     ROOT / "sims" / "README.md", ROOT / "CONTRIBUTING.md", ROOT / "README.md",
+     ROOT / "outputs" / "reference" / "README.md"]
 )
 TOP_FOLDERS = ("semdp", "solvers", "sims", "conf", "tests", "outputs", "docs", "examples")
 PATH_WORD = re.compile(

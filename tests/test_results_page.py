@@ -141,7 +141,7 @@ def test_a_planted_wrong_number_in_the_readme_table_fails() -> None:
 
 
 def test_headline_quotes_every_ours_seed_and_mean(page: str) -> None:
-    for (method, robot), (rewards, costs) in _oracle(rp.OURS_FOLDER).items():
+    for (_, robot), (rewards, costs) in _oracle(rp.OURS_FOLDER).items():
         per_seed = " / ".join(f"{r:.2f}" for r in rewards)
         assert f"**{_mean_se(rewards)} / {_mean_se(costs)}** ({per_seed})" in page, robot
 

@@ -108,7 +108,7 @@ def steps_text(steps: float) -> str:
     """``2000000`` -> ``2 × 10⁶``, ``1200000`` -> ``1.2 × 10⁶``, ``150000`` -> ``1.5 × 10⁵``."""
     if steps <= 0:
         return str(steps)
-    exponent = int(math.floor(math.log10(steps)))
+    exponent = math.floor(math.log10(steps))
     mantissa = round(steps / 10**exponent, 2)
     head = "" if mantissa == 1 else f"{mantissa:g} × "
     return f"{head}10{str(exponent).translate(_SUPERSCRIPT)}"
@@ -445,8 +445,9 @@ def readme_table(sources: Sources) -> str:
     thesis = sources.data("thesis.yaml")["table_3_1"]
     o_steps = steps_text(next(iter(ours.values()))[0].env_steps)
     b_steps = steps_text(next(iter(base.values()))[0].env_steps)
+    t_steps = steps_text(thesis["steps"]["Ours"])
     lines = [f"| Push1, reward / cost | Ours ({o_steps} steps) | "
-             + " | ".join(f"{m} ({b_steps})" for m in BASELINES) + f" | thesis' Ours ({steps_text(thesis['steps']['Ours'])}) |",
+             + " | ".join(f"{m} ({b_steps})" for m in BASELINES) + f" | thesis' Ours ({t_steps}) |",
              "|---" * (2 + len(BASELINES) + 1) + "|"]
     for robot in ROBOTS:
         env = f"{robot}Push1"
