@@ -188,6 +188,14 @@ def _check_bench(args: list[str]) -> None:
     from semdp.cli.bench import SUITES
 
     assert args, "semdp-bench needs a suite"
+    if args[0] == "ab":  # `semdp-bench ab [key=value] -- <command>`: the command is checked too
+        from semdp.benchmarks.ab import DEFAULTS, split_command
+
+        items, timed = split_command(args[1:])
+        parse_args("ab", items, DEFAULTS)
+        if timed[0].startswith("semdp-"):
+            check_command(timed)
+        return
     for suite in args[0].split("|"):
         assert suite in SUITES, f"semdp-bench: unknown suite {suite!r}"
         defaults = getattr(importlib.import_module(SUITES[suite]), "DEFAULTS", None)
@@ -291,11 +299,14 @@ def test_placeholders_and_run_outputs_are_not_paths() -> None:
         ("semdp-eval <run dir> no_such_setting=3", "no_such_setting"),
         ("semdp-bench no_such_suite", "no_such_suite"),
         ("semdp-bench planner no_such_key=1", "no_such_key"),
+        ("semdp-bench ab base=HEAD~1 -- semdp-train no_such_key=1", "no_such_key"),
+        ("semdp-bench ab no_such_key=1 -- semdp-toy", "no_such_key"),
         ("semdp-report <sweep> --no-such-option", "--no-such-option"),
     ],
     ids=["unknown-key", "unknown-sweep-option-2nd", "unknown-sweep-option-1st", "wrong-type",
          "ray-without-sweep-dir", "plan-unknown-key", "unknown-zoo-entry",
          "unknown-eval-setting", "unknown-bench-suite", "unknown-bench-key",
+         "ab-timed-command-broken", "ab-unknown-key",
          "unknown-report-option"],
 )
 def test_planted_broken_command_fails(block: str, fault: str) -> None:

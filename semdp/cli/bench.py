@@ -6,6 +6,7 @@ that prints a table and writes a CSV. Examples::
     semdp-bench planner backends=[ipopt,lm,scp]
     semdp-bench sims
     semdp-bench driving
+    semdp-bench ab base=HEAD~1 -- semdp-bench semdp steps=2000   # two versions, side by side
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ SUITES: dict[str, str] = {
     "semdp": "semdp.benchmarks.semdp",
     "safety": "semdp.benchmarks.safety",
     "price": "semdp.benchmarks.price",
+    "ab": "semdp.benchmarks.ab",
 }
 
 
