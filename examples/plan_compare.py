@@ -1,5 +1,5 @@
 """Solve one planning problem with IPOPT and with Levenberg-Marquardt, print what each plan
-satisfies (Eqs. 3.3-3.7) and draw both (thesis §3.5.2; solvers/README.md, "Compare backends on
+satisfies (Eqs. 3.3-3.7) and draw both (thesis §3.5.2; docs/planner.md, "Compare backends on
 one problem").
 
     python examples/plan_compare.py            # writes plan_compare.png here

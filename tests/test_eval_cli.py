@@ -1,4 +1,4 @@
-"""``semdp-eval`` (semdp/README.md, "Evaluating a trained run"): real ``budget=ci`` SEMDP and
+"""``semdp-eval`` (docs/evaluation.md): real ``budget=ci`` SEMDP and
 PPO-Lag runs evaluated with overrides and a video read back with imageio; every bad argument
 gives one line on stderr and exit code 1; the shorthands on the saved config; the overlay."""
 

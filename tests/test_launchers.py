@@ -1,6 +1,6 @@
 """Scale-out launchers for real: a 2-job ``budget=ci`` sweep through a Ray cluster this test
 starts on the loopback address (``hydra/launcher=cluster_ray``) and through submitit's local
-executor (``hydra/launcher=submitit_local``). The commands are semdp/README.md's "Scale-out" ones.
+executor (``hydra/launcher=submitit_local``). The commands are those of docs/scale-out.md.
 
 Both need the optional extras, which ``.[dev]`` installs (the README's test command); a missing
 extra fails here rather than skipping.

@@ -1,5 +1,5 @@
 """``solvers.planner.compare``: one problem, several planners side by side, on problems whose
-answer is known (solvers/README.md, "Compare backends on one problem")."""
+answer is known (docs/planner.md, "Compare backends on one problem")."""
 
 from __future__ import annotations
 

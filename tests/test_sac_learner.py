@@ -1,4 +1,4 @@
-"""SAC's round loop and learner process (semdp/README.md, "SAC learner process"): the fused twin
+"""SAC's round loop and learner process (docs/semdp.md, "The main job's loop"): the fused twin
 critic and the shared replay buffer against their plain forms, the same numbers in a learner
 process as inline, exact resume, and a learner process that ends with training -- also on
 errors, on Ctrl-C and when it dies itself."""

@@ -1,4 +1,4 @@
-"""TensorBoard mirror of ``progress.csv`` (semdp/README.md, "Run directory") and the per-epoch
+"""TensorBoard mirror of ``progress.csv`` (docs/training.md, "Run directory") and the per-epoch
 SEMDP time split: real ``budget=ci`` trainings read back with TensorBoard's EventAccumulator,
 and the logger's resume rules on small synthetic CSVs."""
 

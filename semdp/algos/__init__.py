@@ -1,4 +1,4 @@
-"""Safe RL algorithms (semdp/README.md, "Algorithms and recorded choices"): PPO, PPO-Lag,
+"""Safe RL algorithms (docs/training.md, "Algorithms and recorded choices"): PPO, PPO-Lag,
 SP-PPO-Lag, TRPO-Lag, CPO, SAC.
 
 Hierarchy (at most two levels below the shared bases): ``OnPolicyAlgorithm -> PPO -> PPOLag ->

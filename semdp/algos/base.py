@@ -1,6 +1,6 @@
 """The algorithm base: the epoch loop with logging, evaluation, checkpoints and resume.
 
-Run directory written by :meth:`Algorithm.learn` (semdp/README.md, "Run directory"):
+Run directory written by :meth:`Algorithm.learn` (docs/training.md, "Run directory"):
 ``progress.csv`` (one row per epoch), ``checkpoints/last.pt``, ``metrics.json``. A checkpoint
 holds everything needed to continue bit-for-bit: network and optimiser states, normaliser
 statistics, multiplier and schedule state, replay buffer, the pickled vector env (sub-env states

@@ -1,5 +1,5 @@
-"""Where SAC's learner runs: in the training process or in a process of its own (semdp/README.md,
-"SAC learner process").
+"""Where SAC's learner runs: in the training process or in a process of its own (docs/semdp.md,
+"The main job's loop").
 
 Both hosts take the same calls from :class:`semdp.algos.sac.SAC`'s round loop --
 ``start(n_updates, size)`` when a round of collection begins, ``wait()`` when it ends,

@@ -1,6 +1,6 @@
 """The SAC learner process' handler (started by
 :class:`semdp.algos.learner_host.ProcessLearner` as a :class:`solvers.workers.Helper`; the high
-level of thesis Alg. 2, semdp/README.md, "SAC learner process").
+level of thesis Alg. 2, docs/semdp.md, "The main job's loop").
 
 Requests: ``("init", settings, fd, layout, nbytes, threads)`` maps the replay file through the
 inherited descriptor and builds the learner; ``("load", state)``; ``("run", n_updates, size)``

@@ -1,7 +1,7 @@
 """PPO and PPO-Lagrangian: clipped surrogate (Schulman et al. 2017; thesis Eq. 2.6) and the
 Lagrange multiplier on the episode cost (Ray, Achiam & Amodei 2019; thesis Eqs. 2.4-2.7).
 
-Update scheme (recorded choice, semdp/README.md "Algorithms and recorded choices"): CleanRL-style
+Update scheme (recorded choice, docs/training.md, "Algorithms and recorded choices"): CleanRL-style
 ``update_iters`` passes x ``num_minibatches`` minibatches, gradient-norm clip 0.5, actor learning
 rate linearly decayed to 0 over the run, early stop of the passes when the approximate KL on the
 whole batch exceeds ``target_kl`` (OmniSafe's per-pass check). The cost critic is trained as well

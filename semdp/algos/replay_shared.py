@@ -1,5 +1,5 @@
-"""SAC's replay buffer, in torch tensors that a learner process can share (semdp/README.md,
-"SAC learner process"); every SAC loop uses it.
+"""SAC's replay buffer, in torch tensors that a learner process can share (docs/semdp.md,
+"The main job's loop"); every SAC loop uses it.
 
 The rows live in torch tensors, written through NumPy views by the collecting process and read with
 ``index_select`` by :class:`~semdp.algos.sac_learner.SACLearner`. With ``shared`` the tensors

@@ -1,6 +1,6 @@
 """Soft Actor-Critic with automatic entropy tuning and twin Q (Haarnoja et al. 2018).
 
-CleanRL defaults (semdp/README.md, "Algorithms and recorded choices"): 256x256 ReLU, actor lr
+CleanRL defaults (docs/training.md, "Algorithms and recorded choices"): 256x256 ReLU, actor lr
 3e-4, critic lr 1e-3, tau 0.005, batch 256, 5000 uniformly random steps first, policy delay 2
 (the actor and the temperature are then updated twice), target entropy ``-dim(A)``. Time-outs
 bootstrap (only ``terminated`` masks the target). SAC optimises reward only -- the cost is
@@ -13,7 +13,7 @@ One update (:class:`~semdp.algos.sac_learner.SACLearner`), three loops (``learne
 ``process`` / ``inline`` -- collection proceeds in rounds of ``sync_every`` env steps while the
 updates earned by the previous round run, in a learner process on another core (``process``) or
 in this process after the round (``inline``, the same numbers); the collector acts with the
-weights of the last finished round (semdp/README.md, "SAC learner process").
+weights of the last finished round (docs/semdp.md, "The main job's loop").
 """
 
 from __future__ import annotations

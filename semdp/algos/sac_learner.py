@@ -1,5 +1,5 @@
 """The learning half of SAC (Haarnoja et al. 2018): SAC's only update, run in the training process
-or in a process of its own (semdp/README.md, "SAC learner process"; the high level of thesis
+or in a process of its own (docs/semdp.md, "The main job's loop"; the high level of thesis
 Alg. 2).
 
 :class:`SACLearner` owns the actor, the fused twin critic (:class:`~semdp.algos.twin_q.FusedTwinQ`)

@@ -1,4 +1,4 @@
-"""``semdp-bench planner``: every planner backend on one seeded problem suite (solvers/README.md).
+"""``semdp-bench planner``: every planner backend on one seeded problem suite (docs/planner.md).
 
 Usage::
 

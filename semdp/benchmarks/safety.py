@@ -179,7 +179,7 @@ def format_table(rows: list[dict[str, Any]]) -> str:
 
 
 def markdown_table(rows: list[dict[str, Any]], seed: int, episodes: int) -> str:
-    """The table for a README: one row per robot x task, the policy x config cells as
+    """The table for a page: one row per robot x task, the policy x config cells as
     ``episodes with cost / episodes`` (– where a policy does not apply) and the fallback,
     escape, rescue and shield rates (the shield's: lowest-highest cell)."""
     policies = [p for p in POLICIES if any(r["policy"] == p for r in rows)]

@@ -4,7 +4,7 @@ For each robot x task at one level (default 1) it times random-action steps (act
 beforehand; resets at episode ends included) through ``gymnasium.make`` (single env, with the
 usual wrappers) and through gymnasium vector envs (sync and async), prints a markdown table and
 writes a CSV. ``--calibration`` prints the robot responses against Safety-Gymnasium's measured
-tables (sims/README.md, "Robots and calibration"). ``key=value`` arguments
+tables (docs/simulators.md, "Robots and calibration"). ``key=value`` arguments
 (:mod:`semdp.benchmarks.arguments`, which also reads the ``--num-envs 8`` spelling)::
 
     semdp-bench sims
@@ -28,7 +28,8 @@ from semdp.benchmarks.arguments import BenchArgumentError, as_bool, as_choices, 
 from sims.safety_gym.calibration import calibration_table, format_table
 from sims.safety_gym.config import LEVELS, ROBOTS, TASKS, env_id
 
-#: Safety-Gymnasium 1.0.0 (MuJoCo) SafetyPointPush1-v0, measured on this machine kind (README.md).
+#: Safety-Gymnasium 1.0.0 (MuJoCo) SafetyPointPush1-v0, measured on this machine kind
+#: (docs/simulators.md, "Speed").
 MUJOCO_POINT_PUSH1_STEPS_PER_S = 390.0
 
 

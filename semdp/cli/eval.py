@@ -1,5 +1,4 @@
-"""``semdp-eval RUN_DIR [key=value ...]``: evaluate a finished run (semdp/README.md,
-"Evaluating a trained run").
+"""``semdp-eval RUN_DIR [key=value ...]``: evaluate a finished run (docs/evaluation.md).
 
     semdp-eval outputs/train/<run>                                   # 50 episodes, as trained
     semdp-eval outputs/train/<run> lambda=fixed label="Ours w/o Lag" # an evaluation-time ablation

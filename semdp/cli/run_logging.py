@@ -1,4 +1,4 @@
-"""What ``semdp-train`` adds to a run's ``progress.csv`` logging (semdp/README.md, "Run
+"""What ``semdp-train`` adds to a run's ``progress.csv`` logging (docs/training.md, "Run
 directory"): the per-epoch SEMDP time split for Safety-Embedded MDP runs and, with
 ``tensorboard: true`` (``conf/train.yaml``) and the ``tensorboard`` package installed, event
 files in the run directory holding every ``progress.csv`` scalar.

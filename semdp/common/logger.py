@@ -1,8 +1,8 @@
 """Run-directory writers: ``progress.csv`` (one row per epoch) and ``metrics.json``.
 
-The header follows the run-directory contract of the project (semdp/README.md, "Run
-directory"); algorithm-specific columns are appended after the common ones. An empty cell means
-"not measured this epoch".
+The header follows the run-directory contract of the project (docs/training.md, "Run
+directory"); algorithm-specific columns are appended after the common ones. An empty cell
+means "not measured this epoch".
 
 What else happens to a row is decided by whoever starts the run, not by the epoch loop: inside
 :func:`run_logging`, every :class:`ProgressCSV` opened adds the columns of the given
@@ -38,8 +38,9 @@ COMMON_COLUMNS: tuple[str, ...] = (
     "epoch", "env_steps", "wall_time_s", "fps", "ep_return", "ep_cost", "ep_length",
     "lagrange_multiplier", "cost_threshold", "eval_return", "eval_cost",
 )
-#: Per-epoch seconds of the Safety-Embedded MDP time split (semdp/README.md, "The wrapper"),
-#: added by :class:`semdp.embedded.timing.EpochTimeSplit` to SEMDP runs.
+#: Per-epoch seconds of the Safety-Embedded MDP time split (docs/semdp.md, "The wrapper, the
+#: planner and the certificate"), added by :class:`semdp.embedded.timing.EpochTimeSplit` to
+#: SEMDP runs.
 TIME_SPLIT_COLUMNS: tuple[str, ...] = (
     "time_perception_s", "time_plan_s", "time_follow_s", "time_sim_s",
     "time_learning_and_overhead_s",

@@ -1,4 +1,4 @@
-"""Actor and critic networks (defaults: semdp/README.md, "Algorithms and recorded choices").
+"""Actor and critic networks (defaults: docs/training.md, "Algorithms and recorded choices").
 
 On-policy: separate MLPs for the Gaussian actor (state-independent learnable ``log_std``), the
 reward critic and the cost critic, 64x64 tanh, orthogonal init (CleanRL gains: sqrt(2) hidden,

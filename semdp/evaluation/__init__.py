@@ -1,5 +1,4 @@
-"""``semdp-eval``: evaluate a finished run with evaluation-time changes (semdp/README.md,
-"Evaluating a trained run").
+"""``semdp-eval``: evaluate a finished run with evaluation-time changes (docs/evaluation.md).
 
 :mod:`.options` parses the command line, :mod:`.config_edits` applies it to the run's saved
 config, :mod:`.environment` builds the evaluation env, :mod:`.episodes` plays and summarises the

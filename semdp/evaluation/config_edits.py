@@ -3,7 +3,7 @@
 The saved config of a Safety-Embedded MDP run holds its evaluation wrapper as
 ``env.eval_wrapper`` with the planner as a full ``conf/planner`` node (``_target_``, ``backend``,
 ``clearance``, ``rescue_backend``, ...) and the follower as a node of the robot's
-``conf/robot/<robot>.yaml`` (semdp/README.md, "The Safety-Embedded MDP"). The shorthands edit
+``conf/robot/<robot>.yaml`` (docs/semdp.md). The shorthands edit
 that node:
 
 - ``planner=<name>``: ``conf/planner/<name>.yaml`` composed with Hydra's compose API; the run's

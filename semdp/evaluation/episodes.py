@@ -2,7 +2,8 @@
 
 Per episode: reset seed, return, cost, length (low-level env steps) and, at episode end,
 ``success`` when the env reports it. For a Safety-Embedded MDP run also the plan statistics its
-wrapper reports in ``info`` (semdp/README.md, "The wrapper"): high-level steps (plans),
+wrapper reports in ``info`` (docs/semdp.md, "The wrapper, the planner and the
+certificate"): high-level steps (plans),
 fallbacks (``plan_fallback``: the stationary plan replaced an uncertified one), escapes
 (``plan_escape``: the start was inside eps'), rescues (``plan_rescued``: IPOPT re-solved a plan
 LM could not certify), the smallest certified clearance (``plan_min_clearance``) and, with the

@@ -1,4 +1,4 @@
-"""The error ``semdp-eval`` reports as one line (semdp/README.md, "Evaluating a trained run")."""
+"""The error ``semdp-eval`` reports as one line (docs/evaluation.md)."""
 
 from __future__ import annotations
 

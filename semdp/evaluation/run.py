@@ -1,5 +1,4 @@
-"""Evaluate a finished run and write ``<run dir>/eval_<time>/`` (semdp/README.md, "Evaluating a
-trained run").
+"""Evaluate a finished run and write ``<run dir>/eval_<time>/`` (docs/evaluation.md).
 
 The directory holds ``metrics.json`` (per-episode results, their means in ``eval``, the
 arguments, the evaluated settings), ``config.yaml`` (the config that was evaluated), a copy of

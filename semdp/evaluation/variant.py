@@ -1,5 +1,5 @@
-"""Evaluate a trained run on a modified evaluation env (semdp/README.md, "How the presets are
-built").
+"""Evaluate a trained run on a modified evaluation env (docs/experiments.md, "How the presets
+are built").
 
 Both the eps' trade-off (Fig. B.1) and the transfer stand-in (Table 3.2) re-evaluate a policy
 with the mean action on envs that differ from the training ones. :func:`evaluate_on` swaps a

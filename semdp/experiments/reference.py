@@ -1,4 +1,4 @@
-"""Turn a finished sweep into a committed reference folder (outputs/reference/README.md: the layout).
+"""Turn a finished sweep into a committed reference folder (layout: outputs/reference/README.md).
 
     python -m semdp.experiments.reference <sweep dir> outputs/reference/<preset> [--order ...]
     python -m semdp.experiments.reference <sweep s0> <sweep s1> outputs/reference/<preset>

@@ -1,5 +1,5 @@
 """The figures of ``semdp-plan``: one plan with its certificate, or several planners' plans of
-one problem overlaid (thesis §3.5.2; solvers/README.md)."""
+one problem overlaid (thesis §3.5.2; docs/planner.md)."""
 
 from __future__ import annotations
 

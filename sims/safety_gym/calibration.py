@@ -1,5 +1,5 @@
 """Robot response measurements against the tables measured in Safety-Gymnasium 1.0.0 (the
-constants below; sims/README.md, "Robots and calibration").
+constants below; docs/simulators.md, "Robots and calibration").
 
 Each measurement drives a robot alone (Goal level 0, goal planted far away) with a constant
 action, as measured in Safety-Gymnasium: average over the last 100 of 400 (Point) or 300 (Car)

@@ -36,7 +36,7 @@ LAYOUT_KEYS: tuple[str, ...] = (
 class SafetyGymEnv(
     PhysicsWorld, TaskRules, SensorObservation, PlannerView, TopDownRendering, gymnasium.Env
 ):
-    """Safety Gym task for one robot at one level (sims/README.md, "What is replicated").
+    """Safety Gym task for one robot at one level (docs/simulators.md, "What is replicated").
 
     Args:
         robot: ``"point"``, ``"car"`` or ``"mass"``. A robot-only, obstacle-free world is

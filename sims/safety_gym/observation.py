@@ -1,6 +1,6 @@
 """Observation of the Safety Gym replica: robot sensors, then one pseudo-LiDAR per object type.
 
-Layout as in sims/README.md ("What is replicated", Observation): accelerometer (body frame,
+Layout as in docs/simulators.md ("What is replicated", Observation): accelerometer (body frame,
 +9.81 in z), velocimeter, gyro, magnetometer (the Car adds its rear-ball sensors), then 16-bin
 pseudo-LiDAR channels in Safety-Gymnasium's insertion order of the task's object types.
 """

@@ -1,8 +1,8 @@
 """The planner's view of a Safety Gym task: robot pose and velocity, goal, box, obstacles.
 
 Ground-truth accessors for the Safety-Embedded MDP's planner (thesis §3.5, App. B.2.1: the
-root node is the planned point; obstacles are discs ``[x, y, radius]``). sims/README.md ("The
-planner's view, perception, rendering") lists them.
+root node is the planned point; obstacles are discs ``[x, y, radius]``). docs/simulators.md
+("The planner's view, perception, rendering") lists them.
 """
 
 from __future__ import annotations

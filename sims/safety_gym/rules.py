@@ -1,6 +1,6 @@
 """Task rules of the Safety Gym replica: reward, cost terms and goal resampling.
 
-Goal, Button and Push as in sims/README.md ("What is replicated"): a dense distance-decrease
+Goal, Button and Push as in docs/simulators.md ("What is replicated"): a dense distance-decrease
 reward (Push: robot→box plus box→goal, in 3D) with a +1 bonus when the goal is met; a per-step
 0/1 cost (``constrain_indicator=True``) beside the named terms of the constrained objects; a new
 goal after each success, the episode continuing (Button: a uniformly drawn button and a 10-step

@@ -1,9 +1,9 @@
 """The physical world of a Safety Gym task: pymunk space, bodies and shapes of a layout.
 
-Builds the world of one sampled layout (sims/README.md, "What is replicated": vases, pillars,
+Builds the world of one sampled layout (docs/simulators.md, "What is replicated": vases, pillars,
 buttons, gremlins and the notched push box are physical, hazards and the goal are not), advances
 it by the robot's substeps (gremlin motion and floor friction before each), collects the robot's
-contacts, and makes copies continue exactly (sims/README.md, "Copying and checkpoints"). Hot
+contacts, and makes copies continue exactly (docs/simulators.md, "Copying and checkpoints"). Hot
 paths use plain Python floats: numpy calls on 2-element arrays cost more than the arithmetic.
 """
 
@@ -194,7 +194,7 @@ class PhysicsWorld:
         self._touched.append(b if a.collision_type == ROBOT_COLLISION_TYPE else a)
 
     def _move_gremlins(self, h: float) -> None:
-        """Gremlin law: track placement + 0.35 (sin t, cos t) with a 0.09 s lag (sims/README.md)."""
+        """Gremlin law: track placement + 0.35 (sin t, cos t), 0.09 s lag (docs/simulators.md)."""
         t = self.sim_time + h
         ox, oy = cfg.GREMLIN_TRAVEL * math.sin(t), cfg.GREMLIN_TRAVEL * math.cos(t)
         e = self._gremlin_decay

@@ -8,7 +8,7 @@ Usage::
     result = planner.plan(start=[0, 0], subgoal=[2, 1], obstacles=[[1, 0.3], [0.4, -0.8]])
 
 The problem (:mod:`.problem`) is apart from its solvers (:mod:`.backends`, one module and one
-settings class each); the layout is described in solvers/README.md, "Code layout".
+settings class each); the layout is described in docs/planner.md, "Code layout".
 """
 
 from __future__ import annotations

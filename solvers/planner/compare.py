@@ -7,7 +7,7 @@ plans may get closer to the subgoal by exceeding it), the smallest clearance at 
 along the path (Eq. 3.7, exact segment distances), whether the subgoal was reached and whether
 the plan fell back to the stationary one (``x_1 = s`` holds by construction, Eq. 3.5). Times are
 per ``plan`` call, after one untimed call that builds the compiled solvers this problem needs
-(solvers/README.md, "Compare backends on one problem").
+(docs/planner.md, "Compare backends on one problem").
 
 Usage::
 

@@ -82,7 +82,7 @@ class PlannerSettings:
         backend: The backend's settings (a name gives that backend's defaults).
         rescue: ``None`` (default) or IPOPT's settings: when the LM or SCP plan fails the
             certificate, solve the same problem with IPOPT (cold, hard constraints) before
-            falling back to the stationary plan (solvers/README.md, "Rescue"). ``"ipopt"``
+            falling back to the stationary plan (docs/planner.md, "Backends"). ``"ipopt"``
             gives IPOPT's defaults. Stored as None with an IPOPT backend, which has nothing to
             rescue with.
 

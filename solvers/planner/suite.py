@@ -1,5 +1,5 @@
 """Seeded random planning problems: the benchmark suite and the property tests
-(solvers/README.md, "Benchmark").
+(docs/planner.md, "Benchmark").
 
 Problems look like the Safety-Embedded MDP's calls: a start, a subgoal within +-2 m of it (per
 axis, as the policy's action box), 0-8 obstacle centres within a few metres, and in a share of the

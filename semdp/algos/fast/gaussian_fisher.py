@@ -1,8 +1,9 @@
 """Fisher-vector products of the Gaussian actor, written out (TRPO's and CPO's inner loop).
 
 TRPO and CPO solve ``(F + damping I) x = g`` by conjugate gradients, with ``F`` the Hessian of
-the mean ``KL(pi_old || pi_theta)`` at ``theta = theta_old`` (semdp/README.md, "Algorithms and
-recorded choices"); autograd gives ``F v`` by differentiating ``grad KL . v`` a second time. For
+the mean ``KL(pi_old || pi_theta)`` at ``theta = theta_old`` (docs/training.md, "Algorithms
+and recorded choices"); autograd gives ``F v`` by differentiating ``grad KL . v`` a second
+time. For
 the diagonal Gaussian with a state-independent ``log_std`` that Hessian is known in closed form
 at ``theta_old``, where the means and standard deviations agree:
 

@@ -1,7 +1,8 @@
 """PPO's clipped-surrogate minibatch step for the Gaussian actor, derivatives written out.
 
-Per minibatch of ``B`` samples, PPO (thesis Eq. 2.6; semdp/README.md, "Algorithms and recorded
-choices") minimises ``-mean(min(r A, clip(r, 1 - eps, 1 + eps) A)) - ent_coef * entropy`` with
+Per minibatch of ``B`` samples, PPO (thesis Eq. 2.6; docs/training.md, "Algorithms and
+recorded choices") minimises ``-mean(min(r A, clip(r, 1 - eps, 1 + eps) A)) - ent_coef *
+entropy`` with
 ``r = exp(log pi(a|s) - log pi_old(a|s))``, clips the gradient norm and takes an Adam step. For the
 diagonal Gaussian with a state-independent ``log_std`` the derivatives are short:
 

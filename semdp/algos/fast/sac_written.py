@@ -1,5 +1,5 @@
-"""SAC's gradients written out: the learner's ``gradients="written"`` kernel (semdp/README.md,
-"SAC learner process"; the high level of thesis Alg. 2, trained by SAC, Haarnoja et al. 2018).
+"""SAC's gradients written out: the learner's ``gradients="written"`` kernel (docs/semdp.md,
+"The main job's loop"; the high level of thesis Alg. 2, trained by SAC, Haarnoja et al. 2018).
 
 The learner's update (:class:`~semdp.algos.sac_learner.SACLearner`) is small networks on a
 batch of 128: autograd's graph bookkeeping costs about as much as the arithmetic. This module

@@ -1,13 +1,13 @@
 """The reward and cost critics' regression as one stacked network with hand-written gradients.
 
-:func:`~semdp.algos.on_policy.regress_critics` minimises, per minibatch,
-``mean((V_r - R_r)^2) + mean((V_c - R_c)^2) + l2 * sum ||W||^2`` over both critics (semdp/README.md,
-"Algorithms and recorded choices"). With 64x64 critics and minibatches of ~128 that is a few
-microseconds of arithmetic per operation and tens of microseconds of autograd bookkeeping, and
-TRPO-Lag/CPO take ~800 such steps per epoch. Here the two critics, which see the same
-observations, run as one batch of two networks (``baddbmm``: one kernel per layer for both) and
-the backward pass is written out (the derivative of ``tanh`` is ``1 - h^2``, of ReLU ``h > 0``),
-so a step is ~25 operations without a graph.
+:func:`~semdp.algos.on_policy.regress_critics` minimises, per minibatch, ``mean((V_r - R_r)^2) +
+mean((V_c - R_c)^2) + l2 * sum ||W||^2`` over both critics (docs/training.md, "Algorithms and
+recorded choices"). With 64x64 critics and minibatches of ~128 that is a few microseconds of
+arithmetic per operation and tens of microseconds of autograd bookkeeping, and TRPO-Lag/CPO take
+~800 such steps per epoch. Here the two critics, which see the same observations, run as one batch
+of two networks (``baddbmm``: one kernel per layer for both) and the backward pass is written out
+(the derivative of ``tanh`` is ``1 - h^2``, of ReLU ``h > 0``), so a step is ~25 operations without
+a graph.
 
 The parameters and Adam's moments are gathered once per regression from the optimiser's flat
 buffer (:class:`~semdp.common.optim.FlatAdam`, order: critic_r's parameters, then critic_c's)

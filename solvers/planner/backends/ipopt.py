@@ -16,7 +16,7 @@ the start"; the planner then aims at a point outside them instead of the subgoal
 Two attempts: a short one from the detour guess (or the previous plan), kept when it passes the
 certificate, then a cold one from the stationary trajectory, which is feasible whenever the start
 is (thesis §3.5.2). A guess-only start was faster in the median but failed on 2-3 % of the tuning
-problems (solvers/README.md, "Calibration"). Escape mode skips the first attempt. The knobs are
+problems (docs/planner.md, "Calibration"). Escape mode skips the first attempt. The knobs are
 those of :class:`IpoptSettings` (``conf/planner/ipopt.yaml``).
 """
 
@@ -36,7 +36,7 @@ from solvers.planner.problem.gp_prior import GPPrior
 from solvers.planner.problem.preparation import PreparedProblem
 from solvers.planner.validation import count, mapping, set_field
 
-#: IPOPT options for re-solves from a good initial guess (solvers/README.md, "Calibration").
+#: IPOPT options for re-solves from a good initial guess (docs/planner.md, "Calibration").
 IPOPT_OPTIONS: dict[str, object] = {
     "print_level": 0,
     "sb": "yes",

@@ -6,7 +6,7 @@ exactly for IPOPT and LM, to about 1e-8 m for SCP (OSQP carries rounding state f
 the next, so SCP plans depend slightly on the problems solved before, in a loop too). Speed
 comes from a second core (the helper processes of :mod:`solvers.planner.batch.pool`, sharing
 the problems through :mod:`solvers.planner.batch.claims`); the measurements behind the default are
-in solvers/README.md, "Batch".
+in docs/planner.md, "Benchmark".
 
 This module works on any planner with ``settings``, ``memory``, ``plan``, ``warmup`` and a
 ``from_settings`` class method (:class:`BatchPlanner`); the planner module does not import it.

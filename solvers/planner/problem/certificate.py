@@ -5,7 +5,7 @@ the check of Eq. 3.7 (at the waypoints, or along every segment with the continuo
 replaced by it and flagged as a fallback. In escape mode (the start inside some clearance) the
 check asks "no closer than the start" of those obstacles
 (:func:`solvers.planner.problem.preparation.prepare`) and the plan aims at :func:`escape_target`
-instead of the subgoal (solvers/README.md, "Escape mode"). A backend hands its plan over as an
+instead of the subgoal (docs/planner.md, "Backends"). A backend hands its plan over as an
 :class:`Iterate`, whichever backend it is.
 """
 

@@ -4,7 +4,7 @@
 into the start-relative frame of :mod:`.gp_prior`, computes each obstacle's required clearance
 ``eps' + r_j`` (Eq. 3.7) and selects the obstacles a backend is given: those a plan within the
 smoothness budget can reach, nearest first. A start inside some clearance puts the problem in
-escape mode (solvers/README.md, "Escape mode"): those obstacles then require "no closer than the
+escape mode (docs/planner.md, "Backends"): those obstacles then require "no closer than the
 start".
 """
 
