@@ -3,7 +3,9 @@
 ``outputs/reference/zoo.yaml`` maps a name to a kept run directory (relative to
 ``outputs/reference``) that holds ``config.yaml`` and ``policy.pt``; ``semdp-eval zoo:<name>``
 evaluates it as ``semdp-eval <run dir>`` would, writing its results under
-``outputs/eval/<name>/`` instead of into the committed folder.
+``outputs/eval/<name>/`` (of the working directory, outside a checkout) instead of into the
+committed folder. Outside a checkout the index and the run directories are the copy the package
+ships (:mod:`semdp.zoo_data`).
 """
 
 from __future__ import annotations
@@ -14,10 +16,12 @@ from omegaconf import OmegaConf
 
 from semdp.evaluation.errors import EvalError
 from semdp.paths import REFERENCE_DIR, REPO_ROOT
+from semdp.zoo_data import INDEX_NAME, zoo_root
 
 #: Prefix of a zoo entry on the ``semdp-eval`` command line.
 PREFIX = "zoo:"
-INDEX = REFERENCE_DIR / "zoo.yaml"
+#: The checkout's ``outputs/reference/zoo.yaml``, else the installed package's copy.
+INDEX = zoo_root(REFERENCE_DIR) / INDEX_NAME
 
 
 def entries(index: Path | None = None) -> dict[str, Path]:
