@@ -495,8 +495,9 @@ def listed_claims(sources: Sources) -> list[dict[str, Any]]:
     return listed
 
 
-def _command_md_facts(text: str) -> tuple[str, str | None, str]:
-    """(title, runs line, rebuild command) of a COMMAND.md."""
+def _command_md_facts(text: str, record: str = "COMMAND.md") -> tuple[str, str | None, str]:
+    """(title, runs line, rebuild command) of a folder's record (its COMMAND.md, else its
+    README.md, named by ``record``)."""
     title = next((line[2:].strip() for line in text.splitlines() if line.startswith("# ")), "")
     title = re.sub(r"^Reference:\s*", "", title)
     runs = re.search(r"^- Runs: (\d+) \((\d+) completed\)", text, re.M)
@@ -507,9 +508,11 @@ def _command_md_facts(text: str) -> tuple[str, str | None, str]:
     block = re.search(r"^```(?:bash)?\n(.*?)^```", text, re.M | re.S)
     commands = [line.split("  #")[0].strip() for line in (block.group(1) if block else "")
                 .splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    if not commands:  # a command named in the prose
+        commands = re.findall(r"`((?:semdp-|python -m )[^`]+)`", text)[:1]
     if not commands:
-        return title, runs_text, "see COMMAND.md"
-    more = f" (and {len(commands) - 1} more in COMMAND.md)" if len(commands) > 1 else ""
+        return title, runs_text, f"see {record}"
+    more = f" (and {len(commands) - 1} more in {record})" if len(commands) > 1 else ""
     return title, runs_text, commands[0] + more
 
 
@@ -529,7 +532,8 @@ def _replaced_by(banner: str) -> str:
 
 
 def _clause(text: str) -> str:
-    """A paragraph's first clause (up to its first colon or semicolon)."""
+    """A paragraph's first clause (up to its first colon or semicolon), links as their text."""
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", text)
     return re.split(r"[:;]\s", text, maxsplit=1)[0].strip()
 
 
@@ -565,21 +569,23 @@ def folder_index(sources: Sources) -> str:
             resting[folder].append(number)
     lines = ["## Every folder of `outputs/reference/`", "",
              "Current folders first, then the archived ones (`outputs/reference/archive/`: each "
-             "`COMMAND.md` opens with what the folder was, why it is archived and what replaces "
-             "it). *Claims*: the claims above that rest on it; *runs*: the runs its report "
-             "counts; *zoo*: its policies in `zoo.yaml` (`semdp-eval zoo:<entry>`); *rebuild*: "
-             "the command, from its `COMMAND.md`.", "",
+             "`COMMAND.md`, or `README.md` where the folder has no commands of its own, opens "
+             "with what the folder was, why it is archived and what replaces it). *Claims*: the "
+             "claims above that rest on it; *runs*: the runs its report counts; *zoo*: its "
+             "policies in `zoo.yaml` (`semdp-eval zoo:<entry>`); *rebuild*: the command, from "
+             "that file.", "",
              "| folder | what | claims | status | runs | zoo | rebuild |",
              "|---|---|---|---|---|---|---|"]
     root = sources.root
     folders = sorted(p.name for p in root.iterdir() if p.is_dir() and p.name != "archive")
     folders += sorted(f"archive/{p.name}" for p in (root / "archive").iterdir() if p.is_dir())
     for folder in folders:
-        text = sources.text(f"{folder}/COMMAND.md") if sources.exists(f"{folder}/COMMAND.md") \
-            else ""
-        title, runs, rebuild = _command_md_facts(text)
+        record = next((name for name in ("COMMAND.md", "README.md")
+                       if sources.exists(f"{folder}/{name}")), "COMMAND.md")
+        text = sources.text(f"{folder}/{record}") if sources.exists(f"{folder}/{record}") else ""
+        title, runs, rebuild = _command_md_facts(text, record)
         banner = _banner(text)
-        if title.strip("`") == folder.split("/")[-1]:
+        if not title or title.strip("`") == folder.split("/")[-1]:
             title = (_clause(banner.removeprefix("**Archived.** "))
                      or _runs_summary(sources, folder) or _clause(_first_prose(text)))
         status = "current"
