@@ -62,6 +62,12 @@ class Autograd:
     def fisher(self, actor: nn.Module, obs: torch.Tensor, damping: float) -> None:
         """No written Fisher-vector product."""
 
+    def check_critics(self, *args: Any) -> None:
+        """Nothing to check: the critics' loss runs as defined."""
+
+    def check_ppo(self, *args: Any) -> None:
+        """Nothing to check: PPO's loss runs as defined."""
+
 
 class CriticTargets(NamedTuple):
     """What the critics regress on: normalised observations and both GAE returns."""
@@ -69,6 +75,21 @@ class CriticTargets(NamedTuple):
     obs: torch.Tensor
     ret_r: torch.Tensor
     ret_c: torch.Tensor
+
+
+def critic_loss(
+    critic_r: nn.Module, critic_c: nn.Module, obs: torch.Tensor, ret_r: torch.Tensor,
+    ret_c: torch.Tensor, l2: float,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``(loss, loss_v, loss_vc)`` of a critics' minibatch: the squared errors of V_r and V_c on
+    their GAE returns plus ``l2`` times both critics' summed
+    squared weights (OmniSafe's ``critic_norm_coef``). The written kernel's stacked regression
+    (``gradients=written``) is checked against this at construction."""
+    loss_v = ((critic_r(obs) - ret_r) ** 2).mean()
+    loss_vc = ((critic_c(obs) - ret_c) ** 2).mean()
+    weight_norm = sum((p**2).sum() for net in (critic_r, critic_c)
+                      for name, p in net.named_parameters() if name.endswith("weight"))
+    return loss_v + loss_vc + l2 * weight_norm, loss_v, loss_vc
 
 
 def regress_critics(
@@ -103,8 +124,6 @@ def regress_critics(
     stacked = None if kernel is None else kernel.critics(critic_r, critic_c, optimizer)
     if stacked is not None:
         return stacked.regress(*targets, perms, minibatch, l2, max_grad_norm, stop)
-    weights = [p for net in (critic_r, critic_c)
-               for name, p in net.named_parameters() if name.endswith("weight")]
     params = [*critic_r.parameters(), *critic_c.parameters()]
     n = targets[0].shape[0]
     loss_v = loss_vc = torch.tensor(0.0)
@@ -114,12 +133,10 @@ def regress_critics(
             if stop is not None and stop():
                 return None
             idx = slice(start, start + minibatch)
-            obs = all_obs[idx]
-            loss_v = ((critic_r(obs) - all_ret_r[idx]) ** 2).mean()
-            loss_vc = ((critic_c(obs) - all_ret_c[idx]) ** 2).mean()
-            weight_norm = sum((p**2).sum() for p in weights)
+            loss, loss_v, loss_vc = critic_loss(critic_r, critic_c, all_obs[idx],
+                                                all_ret_r[idx], all_ret_c[idx], l2)
             optimizer.zero_grad()
-            (loss_v + loss_vc + l2 * weight_norm).backward()
+            loss.backward()
             if max_grad_norm is not None:
                 clip_grad_norm(params, max_grad_norm)
             optimizer.step()
@@ -169,8 +186,9 @@ class OnPolicyAlgorithm(Algorithm):
             process) or ``"auto"`` (:mod:`semdp.algos.fast.helpers`).
         parallel_critics: regress the critics in a helper process during the actor update
             (``True``/``False``/``"auto"``).
-        gradients: the update kernel, ``"written"`` (:mod:`semdp.algos.fast.written`) or
-            ``"autograd"``.
+        gradients: the update kernel: ``"autograd"`` (the losses as defined here and in the
+            algorithm's file) or the opt-in ``"written"`` (:mod:`semdp.algos.fast.written`, the
+            presets' choice), checked at construction against those losses.
     """
 
     #: ``rollout_helper``/``critic_helper``: 1 where the epoch used that helper.
@@ -199,7 +217,7 @@ class OnPolicyAlgorithm(Algorithm):
         obs_clip: float = 5.0,
         vectorization: str = "auto",
         parallel_critics: bool | str = "auto",
-        gradients: str = "written",
+        gradients: str = "autograd",
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
         if gradients not in GRADIENTS:
@@ -230,6 +248,8 @@ class OnPolicyAlgorithm(Algorithm):
         self.last_ep_length: float | None = None
         # the seams (semdp.algos.fast): update kernel, rollout collector, critic runner
         self.kernel: Any = WrittenDerivatives() if gradients == "written" else Autograd()
+        self.kernel.check_critics(self.critic_r, self.critic_c, self.critic_optimizer, critic_l2,
+                                  critic_loss, self.obs_dim)
         self.regress = functools.partial(regress_critics, kernel=self.kernel)
         policy = (self.actor, self.normalizer, self.to_env_action)
         self.collector: Any = LocalCollector(*policy)

@@ -80,6 +80,8 @@ class PPO(OnPolicyAlgorithm):
         self.clip_range, self.update_iters = clip_range, update_iters
         self.num_minibatches, self.target_kl, self.ent_coef = num_minibatches, target_kl, ent_coef
         self.actor_optimizer = FlatAdam(self.actor.parameters(), lr=actor_lr)
+        self.kernel.check_ppo(self.actor, self.actor_optimizer, self.actor_loss, clip_range,
+                              ent_coef, self.obs_dim, self.act_dim)
 
     def policy_advantage(self, batch: RolloutBatch) -> torch.Tensor:
         """The advantage the actor ascends; PPO uses A_r (PPO-Lag overrides)."""

@@ -94,6 +94,26 @@ class PPOActorStep:
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """One Adam step on the minibatch; return ``(loss_pi, entropy)`` before the step."""
         flat, exp_avg, exp_avg_sq = self.optimizer.buffers()
+        loss, entropy = self.loss_and_grad(obs, actions, old_log_probs, adv, clip_range, ent_coef)
+        if max_grad_norm is not None:
+            total = torch.linalg.vector_norm(self.grad)
+            self.grad.mul_(torch.clamp(float(max_grad_norm) / (total + 1e-6), max=1.0))
+        self.optimizer.step_buffers(flat, self.grad, exp_avg, exp_avg_sq)
+        return loss, entropy
+
+    @torch.no_grad()
+    def loss_and_grad(
+        self,
+        obs: torch.Tensor,
+        actions: torch.Tensor,
+        old_log_probs: torch.Tensor,
+        adv: torch.Tensor,
+        clip_range: float,
+        ent_coef: float,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(loss_pi, entropy)`` at the optimiser's parameters, the loss's gradient (in
+        parameter order, unclipped) left in :attr:`grad`; the parameters are not touched."""
+        flat = self.optimizer.buffers()[0]
         log_std, layers = self._views(flat)
         g_log_std, grads = self.grad_views
         batch = obs.shape[0]
@@ -123,8 +143,4 @@ class PPOActorStep:
         g_log_std.sub_(ent_coef)
         # d loss / d mu, back through the mean network
         backprop_mlp(d_log_prob * scaled, inputs, [w for w, _ in layers], slopes, grads)
-        if max_grad_norm is not None:
-            total = torch.linalg.vector_norm(self.grad)
-            self.grad.mul_(torch.clamp(float(max_grad_norm) / (total + 1e-6), max=1.0))
-        self.optimizer.step_buffers(flat, self.grad, exp_avg, exp_avg_sq)
         return loss, entropy

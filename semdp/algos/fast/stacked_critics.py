@@ -123,7 +123,6 @@ class StackedCritics:
             w.fill_(2.0 * l2)
         acts = [ACTIVATIONS[a] for a in self.activations]
         act_grads = [ACTIVATION_GRADS[a] for a in self.activations]
-        weights = [w for w, _ in layers]
         returns = torch.stack((ret_r, ret_c))  # (2, N)
         n = obs.shape[0]
         err = torch.zeros(2, 0)
@@ -133,20 +132,9 @@ class StackedCritics:
                 for start in range(0, n, minibatch):
                     if stop is not None and stop():
                         return None
-                    x = all_obs[start:start + minibatch]
-                    batch = x.shape[0]
-                    h = x.expand(2, batch, x.shape[1])
-                    hidden, slopes = [h], []
-                    for (w, b), act, slope in zip(layers[:-1], acts, act_grads, strict=True):
-                        h = act(torch.baddbmm(b.unsqueeze(1), h, w.transpose(1, 2)))
-                        hidden.append(h)
-                        slopes.append(slope(h))
-                    w_out, b_out = layers[-1]
-                    value = torch.baddbmm(b_out.unsqueeze(1), h, w_out.transpose(1, 2))
-                    err = value.squeeze(-1) - all_ret[:, start:start + minibatch]
-                    # d loss / d value, (2, B, 1), back through both networks
-                    backprop_mlp((err * (2.0 / batch)).unsqueeze(-1), hidden, weights, slopes,
-                                 grads)
+                    err = self._minibatch_grad(layers, grads, acts, act_grads,
+                                               all_obs[start:start + minibatch],
+                                               all_ret[:, start:start + minibatch])
                     grad.addcmul_(params, decay)
                     if max_grad_norm is not None:
                         total = torch.linalg.vector_norm(grad)
@@ -160,3 +148,50 @@ class StackedCritics:
             return 0.0, 0.0
         losses = (err * err).mean(1)
         return float(losses[0]), float(losses[1])
+
+    @staticmethod
+    def _minibatch_grad(
+        layers: list[tuple[torch.Tensor, torch.Tensor]],
+        grads: list[tuple[torch.Tensor, torch.Tensor]],
+        acts: Sequence[Callable[[torch.Tensor], torch.Tensor]],
+        act_grads: Sequence[Callable[[torch.Tensor], torch.Tensor]],
+        x: torch.Tensor,
+        ret: torch.Tensor,
+    ) -> torch.Tensor:
+        """Both squared errors' gradient (without the ``l2`` term) into ``grads``; the errors
+        ``(2, B)``."""
+        batch = x.shape[0]
+        h = x.expand(2, batch, x.shape[1])
+        hidden, slopes = [h], []
+        for (w, b), act, slope in zip(layers[:-1], acts, act_grads, strict=True):
+            h = act(torch.baddbmm(b.unsqueeze(1), h, w.transpose(1, 2)))
+            hidden.append(h)
+            slopes.append(slope(h))
+        w_out, b_out = layers[-1]
+        value = torch.baddbmm(b_out.unsqueeze(1), h, w_out.transpose(1, 2))
+        err = value.squeeze(-1) - ret
+        # d loss / d value, (2, B, 1), back through both networks
+        backprop_mlp((err * (2.0 / batch)).unsqueeze(-1), hidden, [w for w, _ in layers], slopes,
+                     grads)
+        return err
+
+    @torch.no_grad()
+    def loss_and_grad(
+        self, obs: torch.Tensor, ret_r: torch.Tensor, ret_c: torch.Tensor, l2: float
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The regression's minibatch loss on ``(obs, ret_r, ret_c)`` (both squared errors plus
+        ``l2`` times the squared weights) and its gradient in the optimiser's parameter order
+        (critic_r's, then critic_c's), unclipped; the parameters are not touched."""
+        flat = self.optimizer.buffers()[0]
+        params = flat[self.index]
+        grad = torch.empty_like(params)
+        layers, grads = self._views(params), self._views(grad)
+        err = self._minibatch_grad(layers, grads, [ACTIVATIONS[a] for a in self.activations],
+                                   [ACTIVATION_GRADS[a] for a in self.activations], obs,
+                                   torch.stack((ret_r, ret_c)))
+        weight_sq = sum((w * w).sum() for w, _ in layers)
+        for (w, _), (gw, _) in zip(layers, grads, strict=True):
+            gw.add_(w, alpha=2.0 * l2)
+        out = torch.empty_like(flat)
+        out.index_copy_(0, self.index, grad)
+        return (err * err).mean(1).sum() + l2 * weight_sq, out
