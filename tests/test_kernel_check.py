@@ -1,9 +1,10 @@
 """The written kernels are checked at construction against the algorithms' own losses: an edit
-to ``PPO.actor_loss`` or ``critic_loss`` that the kernel does not mirror fails the presets'
-(written) configuration by the kernel's name, and changes an autograd run."""
+to ``PPO.actor_loss``, ``critic_loss`` or SAC's losses that the kernel does not mirror fails the
+presets' (written) configuration by the kernel's name, and changes an autograd run."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -15,6 +16,7 @@ from torch.nn.utils import parameters_to_vector
 from semdp.algos import on_policy
 from semdp.algos.fast.written import KernelMismatch
 from semdp.algos.ppo import PPO
+from semdp.algos.sac_learner import LearnerSettings, SACLearner
 from semdp.cli.train import build_algorithm
 from semdp.common.seeding import seed_everything
 
@@ -76,3 +78,59 @@ def test_the_check_draws_nothing_from_the_runs_generators(
         build_algorithm(tiny_train("ppo_lag", f"algo.gradients={gradients}"))
         states.append(torch.get_rng_state())
     assert torch.equal(states[0], states[1])
+
+
+# ----------------------------------------------------------------- SAC
+SAC_SETTINGS = LearnerSettings(6, 2, (16, 16), 3e-4, 1e-3, 0.99, 0.005, 32, 1, 0.5, True, -2.0,
+                               1e-3, 0)
+ORIGINAL_SAC = {name: getattr(SACLearner, name)
+                for name in ("critic_loss", "actor_loss", "alpha_loss")}
+
+
+def _sac_edit(name: str) -> Callable[..., Any]:
+    """A planted edit of one of SAC's losses (a term that moves the gradient's direction: Adam
+    would hide a mere rescaling)."""
+    def edited(self: SACLearner, *args: Any) -> Any:
+        out = ORIGINAL_SAC[name](self, *args)
+        if name == "alpha_loss":
+            return out + 0.5 * self.log_alpha
+        loss, other = out  # critic: (loss, Q); actor: (loss, log pi)
+        return loss + 0.1 * other.square().mean(), other
+    return edited
+
+
+def _sac_run(settings: LearnerSettings) -> torch.Tensor:
+    """The actor, critic and temperature after 4 updates of a learner on random replay rows."""
+    g = torch.Generator().manual_seed(3)
+    n = 64
+    storage = {"obs": torch.randn(n, settings.obs_dim, generator=g),
+               "next_obs": torch.randn(n, settings.obs_dim, generator=g),
+               "actions": torch.rand(n, settings.act_dim, generator=g) * 2 - 1,
+               "rewards": torch.randn(n, generator=g), "terminated": torch.zeros(n)}
+    seed_everything(0)
+    learner = SACLearner(settings, storage)
+    learner.run(4, n)
+    return torch.cat([parameters_to_vector(learner.actor.parameters()).detach(),
+                      parameters_to_vector(learner.critic.parameters()).detach(),
+                      learner.log_alpha.detach().reshape(1)])
+
+
+@pytest.mark.parametrize("name", ["critic_loss", "actor_loss", "alpha_loss"])
+def test_an_unmirrored_edit_of_sacs_loss_fails_the_written_kernel_and_changes_autograd(
+    monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    written = dataclasses.replace(SAC_SETTINGS, gradients="written")
+    before = _sac_run(SAC_SETTINGS)
+    assert torch.equal(_sac_run(written), before)  # the kernel: autograd's floats
+    monkeypatch.setattr(SACLearner, name, _sac_edit(name))
+    with pytest.raises(KernelMismatch, match="sac_written") as failure:
+        _sac_run(written)
+    assert "algo.gradients=autograd" in str(failure.value)
+    assert (_sac_run(SAC_SETTINGS) - before).abs().max() > 1e-7
+
+
+def test_the_main_job_chooses_sacs_written_kernel(
+    compose_train: Callable[..., DictConfig]
+) -> None:
+    cfg = compose_train("experiment=semdp", "budget=ci")
+    assert cfg.algo.gradients == "written"

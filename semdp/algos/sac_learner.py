@@ -112,6 +112,55 @@ class SACLearner:
         self.updates = 0
         self._critic_params = list(self.critic.parameters())
         self._target_params = list(self.critic_target.parameters())
+        if s.gradients == "written":
+            self.check_written()
+
+    def check_written(self) -> None:
+        """The written kernel (:mod:`semdp.algos.fast.sac_written`) against this learner's own
+        losses (:meth:`critic_loss`, :meth:`actor_loss`, :meth:`alpha_loss`) on a random
+        minibatch from a generator of its own (the run's streams are not touched): loss values
+        and gradients must be equal bit for bit, as they are by construction of the kernel. An
+        edit to a loss that the kernel does not mirror raises here."""
+        s = self.settings
+        gen = torch.Generator().manual_seed(0)
+        obs, actions = (torch.randn(s.batch_size, n, generator=gen)
+                        for n in (s.obs_dim, s.act_dim))
+        target = torch.randn(s.batch_size, generator=gen)
+        noise = torch.randn(s.batch_size, s.act_dim, generator=gen)
+        frozen = [p.detach() for p in self._critic_params]
+        alpha = self.log_alpha.detach().exp()
+        loss_q, _ = self.critic_loss(obs, actions, target)
+        loss_pi, logp = self.actor_loss(obs, noise, alpha, frozen)
+        expected = {
+            "the critic loss": [loss_q.detach()],
+            "the critic gradient": list(torch.autograd.grad(loss_q, self._critic_params)),
+            "the actor loss": [loss_pi.detach()],
+            "the actor gradient": list(torch.autograd.grad(loss_pi,
+                                                           list(self.actor.parameters()))),
+            "the temperature gradient": list(torch.autograd.grad(self.alpha_loss(logp),
+                                                                 [self.log_alpha])),
+        }
+        with torch.no_grad():
+            w_loss_q, _, w_grad_q = sac_written.critic_loss_grads(
+                self._critic_params, self.critic.hidden, obs, actions, target)
+            w_loss_pi, w_logp, w_grad_pi = sac_written.actor_loss_grads(
+                self.actor, self._critic_params, self.critic.hidden, obs, noise, alpha)
+            written = {
+                "the critic loss": [w_loss_q], "the critic gradient": list(w_grad_q),
+                "the actor loss": [w_loss_pi], "the actor gradient": list(w_grad_pi),
+                "the temperature gradient": [sac_written.alpha_loss_grad(w_logp,
+                                                                         s.target_entropy)],
+            }
+        for what, tensors in expected.items():
+            if len(tensors) != len(written[what]) or not all(
+                    torch.equal(a, b) for a, b in zip(tensors, written[what], strict=True)):
+                raise sac_written.KernelMismatch(
+                    f"the written kernel semdp.algos.fast.sac_written disagrees with "
+                    f"SACLearner's own loss on a random minibatch: {what} differs (the kernel "
+                    f"gives autograd's floats bit for bit, so it must be equal). The kernel "
+                    f"restates SAC's derivatives by hand: mirror the edit in "
+                    f"semdp/algos/fast/sac_written.py, or turn the kernel off with the config "
+                    f"option algo.gradients=autograd (or null).")
 
     # ----------------------------------------------------------------- the update
     def _noise(self, batch: int) -> torch.Tensor:
@@ -151,12 +200,34 @@ class SACLearner:
         with torch.no_grad():
             torch._foreach_lerp_(self._target_params, self._critic_params, s.tau)
 
+    # ----------------------------------------------------------------- SAC's losses
+    def critic_loss(self, obs: torch.Tensor, actions: torch.Tensor,
+                    target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(loss_q, Q)``: the twin critics' squared errors on the soft target, summed over
+        the two critics (Haarnoja et al. 2018, Eq. 5)."""
+        q = self.critic(obs, actions, self._critic_params)
+        return (q - target).square().mean(1).sum(), q
+
+    def actor_loss(self, obs: torch.Tensor, noise: torch.Tensor, alpha: torch.Tensor,
+                   critic_params: list[torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(loss_pi, log pi)``: ``mean(alpha log pi(a|s) - min(Q1, Q2)(s, a))`` with ``a``
+        reparameterised by ``noise`` (Haarnoja et al. 2018, Eq. 7), the critic at
+        ``critic_params`` (held fixed: detached tensors)."""
+        mean, raw_log_std = forward_mlp(self.actor.net, obs).chunk(2, dim=-1)
+        sample = self.actor.reparameterised(mean, raw_log_std, noise)
+        q_pi = self.critic(obs, sample.action, critic_params).min(0).values
+        return (alpha * sample.log_prob - q_pi).mean(), sample.log_prob
+
+    def alpha_loss(self, log_prob: torch.Tensor) -> torch.Tensor:
+        """The temperature loss ``-mean(log_alpha (log pi + target entropy))`` (Haarnoja et al.
+        2018b, Eq. 18)."""
+        return -(self.log_alpha * (log_prob.detach() + self.settings.target_entropy)).mean()
+
     def _update_autograd(self, obs: torch.Tensor, actions: torch.Tensor, target: torch.Tensor,
                          logs: dict[str, list[torch.Tensor]]) -> None:
         """The critic step and the delayed actor and temperature steps, gradients by autograd."""
         s = self.settings
-        q = self.critic(obs, actions, self._critic_params)
-        loss_q = (q - target).square().mean(1).sum()
+        loss_q, q = self.critic_loss(obs, actions, target)
         self.critic_optimizer.zero_grad(set_to_none=True)
         loss_q.backward()
         self.critic_optimizer.step()
@@ -166,14 +237,13 @@ class SACLearner:
         if self.updates % s.policy_frequency == 0:
             frozen = [p.detach() for p in self._critic_params]
             for _ in range(s.policy_steps or s.policy_frequency):
-                a, logp = self._policy(obs)
-                q_pi = self.critic(obs, a, frozen).min(0).values
-                loss_pi = (self.log_alpha.detach().exp() * logp - q_pi).mean()
+                loss_pi, logp = self.actor_loss(obs, self._noise(obs.shape[0]),
+                                                self.log_alpha.detach().exp(), frozen)
                 self.actor_optimizer.zero_grad(set_to_none=True)
                 loss_pi.backward()
                 self.actor_optimizer.step()
                 if s.autotune:
-                    loss_alpha = -(self.log_alpha * (logp.detach() + s.target_entropy)).mean()
+                    loss_alpha = self.alpha_loss(logp)
                     self.alpha_optimizer.zero_grad(set_to_none=True)
                     loss_alpha.backward()
                     self.alpha_optimizer.step()

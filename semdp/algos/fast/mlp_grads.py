@@ -73,3 +73,9 @@ def backprop_mlp(
         torch.sum(delta, -2, out=gb)
         if k:
             delta = torch.matmul(delta, weights[k]) * slopes[k - 1]
+
+
+class KernelMismatch(RuntimeError):
+    """A written kernel disagrees with the loss it restates (checked when the algorithm is built:
+    :class:`~semdp.algos.fast.written.WrittenDerivatives`' ``check_*`` methods,
+    :meth:`semdp.algos.sac_learner.SACLearner.check_written`)."""

@@ -24,8 +24,12 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from semdp.algos.fast.mlp_grads import mlp_layers
+from semdp.algos.fast.mlp_grads import KernelMismatch, mlp_layers
 from semdp.common.networks import SquashedGaussianActor
+
+__all__ = ["ActorTape", "KernelMismatch", "TwinQTape", "actor_backward", "actor_forward",
+           "actor_loss_grads", "alpha_loss_grad", "check_supported", "critic_loss_grads",
+           "twin_q_backward", "twin_q_forward"]
 
 _threshold_backward = torch.ops.aten.threshold_backward
 _tanh_backward = torch.ops.aten.tanh_backward

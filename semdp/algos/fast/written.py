@@ -21,6 +21,7 @@ import torch
 from torch import nn
 
 from semdp.algos.fast.gaussian_fisher import GaussianFisher
+from semdp.algos.fast.mlp_grads import KernelMismatch
 from semdp.algos.fast.ppo_actor_step import PPOActorStep
 from semdp.algos.fast.stacked_critics import StackedCritics
 
@@ -31,9 +32,7 @@ RTOL = 1e-4
 #: Size of the check's random minibatch, and its generator's seed.
 CHECK_BATCH, CHECK_SEED = 64, 0
 
-
-class KernelMismatch(RuntimeError):
-    """A written kernel disagrees with the loss it restates."""
+__all__ = ["CHECK_BATCH", "CHECK_SEED", "RTOL", "KernelMismatch", "WrittenDerivatives"]
 
 
 def _compare(kernel: str, module: str, definition: str, what: str, expected: torch.Tensor,
