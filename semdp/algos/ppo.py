@@ -5,9 +5,11 @@ Update scheme (recorded choice, docs/training.md, "Algorithms and recorded choic
 ``update_iters`` passes x ``num_minibatches`` minibatches, gradient-norm clip 0.5, actor learning
 rate linearly decayed to 0 over the run, early stop of the passes when the approximate KL on the
 whole batch exceeds ``target_kl`` (OmniSafe's per-pass check). The cost critic is trained as well
-so that PPO logs the same columns as its constrained variants. The minibatch step of the
-Gaussian actor has its derivatives written out (:mod:`semdp.algos.fast.ppo_actor_step`;
-``gradients="autograd"`` runs it through autograd).
+so that PPO logs the same columns as its constrained variants. The actor's loss is defined once,
+here (:meth:`PPO.actor_loss`), and runs through autograd by default; the presets
+(``conf/algo/ppo.yaml``) opt into a kernel with its derivatives written out
+(``gradients="written"``, :mod:`semdp.algos.fast.ppo_actor_step`), which is checked against
+:meth:`PPO.actor_loss` when the algorithm is built and refuses to run if they disagree.
 
 With ``parallel_critics`` the critics regress in a helper process during the actor passes. Their
 permutations come from torch's generator after the actor's, whose number is only known when
@@ -107,8 +109,10 @@ class PPO(OnPolicyAlgorithm):
     def actor_loss(self, obs: torch.Tensor, actions: torch.Tensor, old_log_probs: torch.Tensor,
                    advantages: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(loss, entropy)`` of a minibatch: the clipped surrogate of thesis Eq. 2.6, negated,
-        less ``ent_coef`` times the policy's entropy. The written step
-        (:mod:`semdp.algos.fast.ppo_actor_step`) takes this loss's gradient by hand."""
+        less ``ent_coef`` times the policy's entropy. This is the definition: the written step
+        (:mod:`semdp.algos.fast.ppo_actor_step`, ``gradients="written"``) takes its gradient by
+        hand and is checked against it at construction (an edit here that the kernel does not
+        mirror fails there, naming the kernel and ``algo.gradients=autograd``)."""
         dist = self.actor.distribution(obs)
         ratio = (dist.log_prob(actions).sum(-1) - old_log_probs).exp()
         clipped = ratio.clamp(1 - self.clip_range, 1 + self.clip_range)

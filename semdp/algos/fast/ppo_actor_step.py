@@ -16,6 +16,18 @@ diagonal Gaussian with a state-independent ``log_std`` the derivatives are short
 So a step is ~40 tensor operations without a graph. Its Adam step is the actor's
 :class:`~semdp.common.optim.FlatAdam` on its own buffers; the numbers equal autograd's up to
 rounding (tested).
+
+The loss is defined in :meth:`semdp.algos.ppo.PPO.actor_loss`; this kernel is the presets' opt-in
+(``gradients="written"``) and is checked against that definition when PPO is built
+(:meth:`~semdp.algos.fast.written.WrittenDerivatives.check_ppo`: loss, entropy and gradient on a
+random minibatch, to ``RTOL`` = 1e-4 of their size; they agree to ~2e-7).
+
+Why it is kept (measured 2026-12-06 on this project's 2-core machine, loaded by other runs:
+medians of 5 alternating repetitions of one PPO-Lag update, ``conf/algo/ppo_lag.yaml`` with
+``env=point_push1``, 10,000 steps, 10 passes x 32 minibatches, actor and critics): autograd
+4.03 s, ``torch.compile`` of ``PPO.actor_loss`` and the critics' loss 3.40 s (after ~86 s of
+compilation), written kernels 2.42 s, i.e. 1.67x autograd and 1.40x the compiled loss. Alone,
+this actor step took the update from 3.54 s to 2.94 s (1.21x) in a second, noisier series.
 """
 
 from __future__ import annotations

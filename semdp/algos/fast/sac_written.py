@@ -13,6 +13,12 @@ update by update), so a run gives the same numbers with either kernel; only the 
 
 Covers what the main job trains: the fused twin critic without LayerNorm and the ReLU
 :class:`~semdp.common.networks.SquashedGaussianActor`; anything else raises.
+
+The losses are defined once, in :class:`~semdp.algos.sac_learner.SACLearner`
+(``critic_loss``, ``actor_loss``, ``alpha_loss``); a learner built with this kernel checks it
+against them on a random minibatch, bit for bit (:meth:`SACLearner.check_written`), so an edit to
+those losses that is not mirrored here fails at construction (turn the kernel off with
+``algo.gradients=autograd``).
 """
 
 from __future__ import annotations
