@@ -24,10 +24,11 @@ random minibatch, to ``RTOL`` = 1e-4 of their size; they agree to ~2e-7).
 
 Why it is kept (measured 2026-12-06 on this project's 2-core machine, loaded by other runs:
 medians of 5 alternating repetitions of one PPO-Lag update, ``conf/algo/ppo_lag.yaml`` with
-``env=point_push1``, 10,000 steps, 10 passes x 32 minibatches, actor and critics): autograd
-4.03 s, ``torch.compile`` of ``PPO.actor_loss`` and the critics' loss 3.40 s (after ~86 s of
-compilation), written kernels 2.42 s, i.e. 1.67x autograd and 1.40x the compiled loss. Alone,
-this actor step took the update from 3.54 s to 2.94 s (1.21x) in a second, noisier series.
+``env=point_push1``, 10,000 steps, 10 passes x 32 minibatches, actor and critics; two series):
+autograd 4.03 / 2.49 s, ``torch.compile`` of ``PPO.actor_loss`` and the critics' loss
+3.40 / 2.44 s (after 86 s of compilation with a cold inductor cache / 8 s with a warm one),
+written kernels 2.42 / 1.82 s, i.e. 1.67x / 1.37x autograd and 1.40x / 1.34x the compiled loss.
+Alone, this actor step took the update from 3.54 s to 2.94 s (1.21x) in a third series.
 """
 
 from __future__ import annotations
@@ -115,13 +116,8 @@ class PPOActorStep:
 
     @torch.no_grad()
     def loss_and_grad(
-        self,
-        obs: torch.Tensor,
-        actions: torch.Tensor,
-        old_log_probs: torch.Tensor,
-        adv: torch.Tensor,
-        clip_range: float,
-        ent_coef: float,
+        self, obs: torch.Tensor, actions: torch.Tensor, old_log_probs: torch.Tensor,
+        adv: torch.Tensor, clip_range: float, ent_coef: float,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """``(loss_pi, entropy)`` at the optimiser's parameters, the loss's gradient (in
         parameter order, unclipped) left in :attr:`grad`; the parameters are not touched."""

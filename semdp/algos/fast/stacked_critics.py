@@ -22,8 +22,8 @@ algorithm is built (:meth:`~semdp.algos.fast.written.WrittenDerivatives.check_cr
 gradient on a random minibatch, to ``RTOL`` = 1e-4 of their size; they agree to ~2e-7).
 Why it is kept: in one PPO-Lag update (``conf/algo/ppo_lag.yaml``, ``env=point_push1``; medians
 of 5 alternating repetitions on the loaded 2-core machine, 2026-12-06) it took the update from
-3.54 s to 2.99 s (1.19x) alone; with the written actor step the update is 1.67x autograd's and
-1.40x that of ``torch.compile`` of both losses (figures in
+3.54 s to 2.99 s (1.19x) alone; with the written actor step the update is 1.37-1.67x
+autograd's and 1.34-1.40x that of ``torch.compile`` of both losses (figures in
 :mod:`semdp.algos.fast.ppo_actor_step`).
 """
 
