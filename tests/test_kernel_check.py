@@ -17,6 +17,7 @@ from semdp.algos import on_policy
 from semdp.algos.fast.written import KernelMismatch
 from semdp.algos.ppo import PPO
 from semdp.algos.sac_learner import LearnerSettings, SACLearner
+from semdp.algos.trpo import TRPO
 from semdp.cli.train import build_algorithm
 from semdp.common.seeding import seed_everything
 
@@ -134,3 +135,16 @@ def test_the_main_job_chooses_sacs_written_kernel(
 ) -> None:
     cfg = compose_train("experiment=semdp", "budget=ci")
     assert cfg.algo.gradients == "written"
+
+
+# ----------------------------------------------------------------- TRPO's Fisher-vector product
+def test_an_unmirrored_edit_of_trpos_kl_fails_the_written_fisher_product(
+    tiny_train: Callable[..., DictConfig], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    assert build_algorithm(tiny_train("trpo_lag")).kernel.name == "written"  # the preset
+    original = TRPO.mean_kl
+    monkeypatch.setattr(TRPO, "mean_kl", lambda self, obs, old: 1.5 * original(self, obs, old))
+    with pytest.raises(Exception, match="GaussianFisher") as failure:
+        build_algorithm(tiny_train("trpo_lag"))
+    assert "algo.gradients=autograd" in str(failure.value)
+    build_algorithm(tiny_train("trpo_lag", "algo.gradients=autograd"))  # runs the edit

@@ -182,7 +182,7 @@ class CPO(TRPO):
         r_old, c_old = surr_r.item(), surr_c.item()
 
         def accept() -> bool:
-            if float(self.mean_kl(batch, old)) > self.target_kl:
+            if float(self.mean_kl(batch.obs, old)) > self.target_kl:
                 return False
             if float(self.surrogate(batch, batch.adv_c)) - c_old > max(-c, 0.0):
                 return False
@@ -190,7 +190,7 @@ class CPO(TRPO):
 
         frac = self.line_search(old_params, full_step, accept)
         with torch.no_grad():
-            kl = float(self.mean_kl(batch, old))
+            kl = float(self.mean_kl(batch.obs, old))
             surr_new = float(self.surrogate(batch, batch.adv_r))
         return {
             "loss_pi": -surr_new, "kl": kl, "step_frac": frac,

@@ -68,6 +68,9 @@ class Autograd:
     def check_ppo(self, *args: Any) -> None:
         """Nothing to check: PPO's loss runs as defined."""
 
+    def check_fisher(self, *args: Any) -> None:
+        """Nothing to check: the Fisher-vector product runs as defined."""
+
 
 class CriticTargets(NamedTuple):
     """What the critics regress on: normalised observations and both GAE returns."""

@@ -93,6 +93,7 @@ class TRPO(OnPolicyAlgorithm):
             raise ValueError(f"backtrack_coef must be in (0, 1), got {backtrack_coef}")
         self.target_kl, self.cg_iters, self.cg_damping = target_kl, cg_iters, cg_damping
         self.backtrack_iters, self.backtrack_coef = backtrack_iters, backtrack_coef
+        self.kernel.check_fisher(self.actor, self.kl_hessian_product, cg_damping, self.obs_dim)
 
     # ----------------------------------------------------------------- pieces
     def policy_advantage(self, batch: RolloutBatch) -> torch.Tensor:
@@ -119,9 +120,9 @@ class TRPO(OnPolicyAlgorithm):
         grads = torch.autograd.grad(value, self._params(), **kwargs)
         return torch.cat([g.reshape(-1) for g in grads])
 
-    def mean_kl(self, batch: RolloutBatch, old: Normal) -> torch.Tensor:
-        """Mean KL(old || current) over the batch."""
-        return kl_divergence(old, self.actor.distribution(batch.obs)).sum(-1).mean()
+    def mean_kl(self, obs: torch.Tensor, old: Normal) -> torch.Tensor:
+        """Mean KL(old || current) over the observations ``obs``."""
+        return kl_divergence(old, self.actor.distribution(obs)).sum(-1).mean()
 
     def fisher_vector_product(
         self, batch: RolloutBatch, old: Normal
@@ -131,7 +132,15 @@ class TRPO(OnPolicyAlgorithm):
         fisher = self.kernel.fisher(self.actor, batch.obs, self.cg_damping)
         if fisher is not None:  # the written-out product (gradients="written")
             return fisher
-        grad_kl = self.flat_grad(self.mean_kl(batch, old), create_graph=True)
+        return self.kl_hessian_product(batch.obs, old)
+
+    def kl_hessian_product(
+        self, obs: torch.Tensor, old: Normal
+    ) -> Callable[[torch.Tensor], torch.Tensor]:
+        """The definition of :meth:`fisher_vector_product`: the Hessian of :meth:`mean_kl` by
+        double backward, plus the damping (the written product, ``gradients="written"``, is
+        checked against this at construction)."""
+        grad_kl = self.flat_grad(self.mean_kl(obs, old), create_graph=True)
 
         def fvp(v: torch.Tensor) -> torch.Tensor:
             hv = self.flat_grad(grad_kl @ v, retain_graph=True)
@@ -173,12 +182,12 @@ class TRPO(OnPolicyAlgorithm):
         surr_old = surr.item()
 
         def accept() -> bool:
-            kl = float(self.mean_kl(batch, old))
+            kl = float(self.mean_kl(batch.obs, old))
             return kl <= self.target_kl and float(self.surrogate(batch, adv)) > surr_old
 
         frac = self.line_search(old_params, full_step, accept)
         with torch.no_grad():
-            kl = float(self.mean_kl(batch, old))
+            kl = float(self.mean_kl(batch.obs, old))
             surr_new = float(self.surrogate(batch, adv))
         return {"loss_pi": -surr_new, "kl": kl, "step_frac": frac}
 

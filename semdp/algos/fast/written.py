@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 import torch
 from torch import nn
+from torch.distributions import Normal
 
 from semdp.algos.fast.gaussian_fisher import GaussianFisher
 from semdp.algos.fast.mlp_grads import KernelMismatch
@@ -80,6 +81,27 @@ class WrittenDerivatives:
                  "semdp.algos.on_policy.critic_loss")
         _compare(*where, "the loss", expected, value)
         _compare(*where, "the gradient", grad, written)
+
+    def check_fisher(
+        self, actor: nn.Module,
+        product: Callable[[torch.Tensor, Normal], Callable[[torch.Tensor], torch.Tensor]],
+        damping: float, obs_dim: int,
+    ) -> None:
+        """:class:`GaussianFisher` against ``product`` (TRPO's ``kl_hessian_product``, the
+        double-backward Hessian of its mean KL) at random observations and vector."""
+        gen = torch.Generator().manual_seed(CHECK_SEED)
+        dtype = actor.log_std.dtype
+        obs = torch.randn(CHECK_BATCH, obs_dim, generator=gen, dtype=dtype)
+        fisher = self.fisher(actor, obs, damping)
+        if fisher is None:
+            return
+        v = torch.randn(sum(p.numel() for p in actor.parameters()), generator=gen, dtype=dtype)
+        with torch.no_grad():
+            dist = actor.distribution(obs)
+            old = Normal(dist.mean.detach(), dist.stddev.detach())
+        _compare("GaussianFisher", "semdp/algos/fast/gaussian_fisher.py",
+                 "semdp.algos.trpo.TRPO.kl_hessian_product", "the Fisher-vector product",
+                 product(obs, old)(v), fisher(v))
 
     def check_ppo(
         self, actor: nn.Module, optimizer: torch.optim.Optimizer,
