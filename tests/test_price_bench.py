@@ -65,7 +65,7 @@ def test_configured_reproduces_the_zoo_entrys_recorded_episodes() -> None:
 
 
 def test_the_filters_interventions_are_counted_and_vanish_without_it() -> None:
-    run = SETS["button1"][0]  # the Point on Button1: the filter replaces many commands
+    run = SETS["button1_whole_bin"][0]  # Point, Button1, whole-bin bound: many replacements
     with_filter = evaluate_cell(Cell(run, "configured", 1))
     without = evaluate_cell(Cell(run, "no_filter", 1))
     assert with_filter["shield_rate"] > 0.05
@@ -137,6 +137,6 @@ def test_a_sets_relative_run_is_found_from_another_directory(
     from semdp.paths import REPO_ROOT
 
     monkeypatch.chdir(tmp_path)
-    run = SETS["button1"][0]
+    run = SETS["button1_whole_bin"][0]
     assert not Path(run).is_absolute() and locate(run) == str(REPO_ROOT / run)
     assert locate("zoo:x") == "zoo:x" and locate(str(tmp_path)) == str(tmp_path)

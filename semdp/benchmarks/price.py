@@ -25,11 +25,11 @@ factor                    what changes (``semdp-eval`` arguments)
 ========================  ==================================================================
 
     semdp-bench price                                   # Push1's 9 zoo policies x 8 factors
-    semdp-bench price set=button1 workers=2             # Button1's 9 reference policies
+    semdp-bench price set=button1 workers=2             # Button1's 9 zoo policies
     semdp-bench price runs=[zoo:semdp_car_push1_s1] factors=[configured,no_filter] episodes=10
 
 ``set=`` names sets of policies (``push1``, the default when no ``runs=`` are given;
-``button1``), ``runs=`` adds run directories or ``zoo:<name>`` entries.
+``button1``; ``button1_whole_bin``, the archived Button1 runs), ``runs=`` adds run directories or ``zoo:<name>`` entries.
 
 Per policy and factor it records reward, cost, episodes with cost and every intervention rate
 (filter %: low-level commands the filter replaced; filter escape %: of those by an escape
@@ -78,12 +78,16 @@ FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
     "clearance_0.3": (("clearance=0.3",), "planner eps' 0.3 m instead of 0.5 m"),
 }
 ROBOTS = ("point", "car", "mass")
-_BUTTON1 = "outputs/reference/semdp_button1/runs/semdp_collect_v4/semdp_{robot}_button1_s{seed}"
-#: Named sets of policies: the Push1 zoo entries and the Button1 reference runs (a relative
-#: path is looked up from the working directory, else from the repository root).
+_BUTTON1_WHOLE_BIN = ("outputs/reference/archive/semdp_button1_whole_bin/runs/semdp_collect_v4/"
+                      "semdp_{robot}_button1_s{seed}")
+#: Named sets of policies: the Push1 and Button1 zoo entries, and the archived Button1 runs
+#: trained with the whole-bin bound (a relative path is looked up from the working directory,
+#: else from the repository root).
 SETS: dict[str, tuple[str, ...]] = {
     "push1": tuple(f"zoo:semdp_{r}_push1_s{s}" for r in ROBOTS for s in range(3)),
-    "button1": tuple(_BUTTON1.format(robot=r, seed=s) for r in ROBOTS for s in range(3)),
+    "button1": tuple(f"zoo:semdp_{r}_button1_s{s}" for r in ROBOTS for s in range(3)),
+    "button1_whole_bin": tuple(_BUTTON1_WHOLE_BIN.format(robot=r, seed=s)
+                               for r in ROBOTS for s in range(3)),
 }
 #: Columns of ``price.csv`` (one row per policy and factor).
 COLUMNS = ("run", "robot", "task", "seed", "factor", "episodes", "return_mean", "return_std",
