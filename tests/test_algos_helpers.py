@@ -16,8 +16,8 @@ import pytest
 import torch
 from omegaconf import DictConfig, open_dict
 
+from semdp.algos.critic_regression import CriticTargets, regress_critics
 from semdp.algos.fast.critic_helper import CriticWorker
-from semdp.algos.on_policy import CriticTargets, regress_critics
 from semdp.cli.train import run
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import ValueCritic

@@ -13,7 +13,7 @@ import torch
 from omegaconf import DictConfig
 from torch.nn.utils import parameters_to_vector
 
-from semdp.algos import on_policy
+from semdp.algos import critic_regression
 from semdp.algos.fast.written import KernelMismatch
 from semdp.algos.ppo import PPO
 from semdp.algos.sac_learner import LearnerSettings, SACLearner
@@ -22,7 +22,7 @@ from semdp.cli.train import build_algorithm
 from semdp.common.seeding import seed_everything
 
 ORIGINAL_ACTOR_LOSS = PPO.actor_loss
-ORIGINAL_CRITIC_LOSS = on_policy.critic_loss
+ORIGINAL_CRITIC_LOSS = critic_regression.critic_loss
 
 
 def _entropy_bonus(self: PPO, *args: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -53,7 +53,7 @@ def test_the_presets_choose_the_written_kernel(tiny_train: Callable[..., DictCon
 
 @pytest.mark.parametrize(("target", "name", "edit", "kernel"), [
     (PPO, "actor_loss", _entropy_bonus, "PPOActorStep"),
-    (on_policy, "critic_loss", _halved_cost_critic, "StackedCritics"),
+    (critic_regression, "critic_loss", _halved_cost_critic, "StackedCritics"),
 ])
 def test_an_unmirrored_edit_fails_the_default_config_and_changes_an_autograd_run(
     tiny_train: Callable[..., DictConfig], monkeypatch: pytest.MonkeyPatch,

@@ -11,7 +11,7 @@ An epoch, in the order the subclasses' ``train_epoch`` runs it:
 3. **GAE** -- :meth:`~OnPolicyAlgorithm.compute_batch` (:mod:`semdp.algos.gae`);
 4. **actor** -- the subclass (PPO's clipped passes, TRPO's natural-gradient step);
 5. **critics** -- :meth:`~OnPolicyAlgorithm.update_critics`: minibatch regression of V_r and V_c
-   on their GAE returns.
+   on their GAE returns (:mod:`semdp.algos.critic_regression`).
 
 Two seams chosen by constructor arguments (``conf/algo/*.yaml``) swap in the speed-ups of
 :mod:`semdp.algos.fast` without changing the plain path: ``gradients`` picks the update kernel
@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
+from collections.abc import Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -33,14 +33,16 @@ import numpy.typing as npt
 import torch
 from torch import nn
 
+from semdp.algos import critic_regression
 from semdp.algos.base import Algorithm
+from semdp.algos.critic_regression import CriticTargets
 from semdp.algos.fast.helpers import with_helpers
 from semdp.algos.fast.written import WrittenDerivatives
 from semdp.algos.gae import RolloutBatch, RolloutBuffer
 from semdp.algos.rollout import LocalCollector, RolloutPart, noise_for
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
-from semdp.common.optim import FlatAdam, clip_grad_norm
+from semdp.common.optim import FlatAdam
 
 VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
 #: ``gradients=``: derivatives written out where the networks allow it, or autograd throughout.
@@ -70,80 +72,6 @@ class Autograd:
 
     def check_fisher(self, *args: Any) -> None:
         """Nothing to check: the Fisher-vector product runs as defined."""
-
-
-class CriticTargets(NamedTuple):
-    """What the critics regress on: normalised observations and both GAE returns."""
-
-    obs: torch.Tensor
-    ret_r: torch.Tensor
-    ret_c: torch.Tensor
-
-
-def critic_loss(
-    critic_r: nn.Module, critic_c: nn.Module, obs: torch.Tensor, ret_r: torch.Tensor,
-    ret_c: torch.Tensor, l2: float,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """``(loss, loss_v, loss_vc)`` of a critics' minibatch: the squared errors of V_r and V_c on
-    their GAE returns plus ``l2`` times both critics' summed
-    squared weights (OmniSafe's ``critic_norm_coef``). The written kernel's stacked regression
-    (``gradients=written``) is checked against this at construction."""
-    loss_v = ((critic_r(obs) - ret_r) ** 2).mean()
-    loss_vc = ((critic_c(obs) - ret_c) ** 2).mean()
-    weight_norm = sum((p**2).sum() for net in (critic_r, critic_c)
-                      for name, p in net.named_parameters() if name.endswith("weight"))
-    return loss_v + loss_vc + l2 * weight_norm, loss_v, loss_vc
-
-
-def regress_critics(
-    critic_r: nn.Module,
-    critic_c: nn.Module,
-    optimizer: torch.optim.Optimizer,
-    targets: Sequence[torch.Tensor],
-    perms: Sequence[torch.Tensor],
-    minibatch: int,
-    l2: float,
-    max_grad_norm: float | None,
-    stop: Callable[[], bool] | None = None,
-    kernel: Any = None,
-) -> tuple[float, float] | None:
-    """Minibatch passes of V_r and V_c on their returns; the last minibatch's losses.
-
-    Per minibatch the squared errors of both critics plus ``l2`` times their summed squared
-    weights (OmniSafe's ``critic_norm_coef``), the gradient norm of both clipped together, one
-    optimiser step; one permutation per pass (``perms``).
-
-    Args:
-        critic_r, critic_c, optimizer: the critics (trained in place) and their optimiser.
-        targets: :class:`CriticTargets` (or the tuple ``(obs, ret_r, ret_c)``).
-        perms: one permutation of the batch indices per pass.
-        minibatch: minibatch size.
-        l2: coefficient of the summed squared weights.
-        max_grad_norm: joint gradient-norm clip (``None`` = off).
-        stop: polled before each minibatch; ``True`` abandons the regression (returns None).
-        kernel: the update kernel (``None``: :class:`Autograd`; the written one regresses both
-            as one stacked network).
-    """
-    stacked = None if kernel is None else kernel.critics(critic_r, critic_c, optimizer)
-    if stacked is not None:
-        return stacked.regress(*targets, perms, minibatch, l2, max_grad_norm, stop)
-    params = [*critic_r.parameters(), *critic_c.parameters()]
-    n = targets[0].shape[0]
-    loss_v = loss_vc = torch.tensor(0.0)
-    for perm in perms:
-        all_obs, all_ret_r, all_ret_c = (x[perm] for x in targets)  # one gather per pass
-        for start in range(0, n, minibatch):
-            if stop is not None and stop():
-                return None
-            idx = slice(start, start + minibatch)
-            loss, loss_v, loss_vc = critic_loss(critic_r, critic_c, all_obs[idx],
-                                                all_ret_r[idx], all_ret_c[idx], l2)
-            optimizer.zero_grad()
-            loss.backward()
-            if max_grad_norm is not None:
-                clip_grad_norm(params, max_grad_norm)
-            optimizer.step()
-    return loss_v.item(), loss_vc.item()
 
 
 class LocalCritics:
@@ -252,8 +180,8 @@ class OnPolicyAlgorithm(Algorithm):
         # the seams (semdp.algos.fast): update kernel, rollout collector, critic runner
         self.kernel: Any = WrittenDerivatives() if gradients == "written" else Autograd()
         self.kernel.check_critics(self.critic_r, self.critic_c, self.critic_optimizer, critic_l2,
-                                  critic_loss, self.obs_dim)
-        self.regress = functools.partial(regress_critics, kernel=self.kernel)
+                                  critic_regression.critic_loss, self.obs_dim)
+        self.regress = functools.partial(critic_regression.regress_critics, kernel=self.kernel)
         policy = (self.actor, self.normalizer, self.to_env_action)
         self.collector: Any = LocalCollector(*policy)
         self.critics: Any = LocalCritics(self.update_critics)

@@ -2,7 +2,7 @@
 in a forked helper, concurrent with the actor update.
 
 The actor update (PPO's clipped passes, TRPO's and CPO's natural-gradient step) never reads the
-critics, so their regression (:func:`~semdp.algos.on_policy.regress_critics`, handed to the
+critics, so their regression (:func:`~semdp.algos.critic_regression.regress_critics`, handed to the
 helper when it is forked) can run on the second core meanwhile. Each request carries the
 critics' and the optimiser's state, the targets and the permutations; the reply carries the new
 states and the losses, which the trainer loads: the result is bit-identical to regressing in the
@@ -90,7 +90,7 @@ class CriticWorker:
             works on its forked copies and loads the trainer's state with every request).
         regress: the regression, ``regress(critic_r, critic_c, optimizer, (obs, ret_r, ret_c),
             perms, minibatch, l2, max_grad_norm, stop=)`` as
-            :func:`~semdp.algos.on_policy.regress_critics` with its kernel bound.
+            :func:`~semdp.algos.critic_regression.regress_critics` with its kernel bound.
     """
 
     def __init__(
@@ -117,7 +117,7 @@ class CriticWorker:
         max_grad_norm: float | None,
     ) -> None:
         """Start a regression from the given critics' current state (arguments as
-        :func:`~semdp.algos.on_policy.regress_critics`; ``targets`` = obs, ret_r, ret_c)."""
+        :func:`~semdp.algos.critic_regression.regress_critics`; ``targets`` = obs, ret_r, ret_c)."""
         if self._pending:
             raise RuntimeError("a critic regression is already running")
         self._cancel[0] = 0

@@ -1,13 +1,13 @@
 """The reward and cost critics' regression as one stacked network with hand-written gradients.
 
-:func:`~semdp.algos.on_policy.regress_critics` minimises, per minibatch, ``mean((V_r - R_r)^2) +
-mean((V_c - R_c)^2) + l2 * sum ||W||^2`` over both critics (docs/training.md, "Algorithms and
-recorded choices"). With 64x64 critics and minibatches of ~128 that is a few microseconds of
-arithmetic per operation and tens of microseconds of autograd bookkeeping, and TRPO-Lag/CPO take
-~800 such steps per epoch. Here the two critics, which see the same observations, run as one batch
-of two networks (``baddbmm``: one kernel per layer for both) and the backward pass is written out
-(the derivative of ``tanh`` is ``1 - h^2``, of ReLU ``h > 0``), so a step is ~25 operations without
-a graph.
+:func:`~semdp.algos.critic_regression.regress_critics` minimises, per minibatch,
+``mean((V_r - R_r)^2) + mean((V_c - R_c)^2) + l2 * sum ||W||^2`` over both critics
+(docs/training.md, "Algorithms and recorded choices"). With 64x64 critics and minibatches of ~128
+that is a few microseconds of arithmetic per operation and tens of microseconds of autograd
+bookkeeping, and TRPO-Lag/CPO take ~800 such steps per epoch. Here the two critics, which see the
+same observations, run as one batch of two networks (``baddbmm``: one kernel per layer for both) and
+the backward pass is written out (the derivative of ``tanh`` is ``1 - h^2``, of ReLU ``h > 0``), so
+a step is ~25 operations without a graph.
 
 The parameters and Adam's moments are gathered once per regression from the optimiser's flat
 buffer (:class:`~semdp.common.optim.FlatAdam`, order: critic_r's parameters, then critic_c's)
@@ -16,8 +16,8 @@ the Adam step is :meth:`FlatAdam.step_buffers`. The mathematics are the autograd
 same loss, joint gradient-norm clip, Adam); the numbers differ from it in the last bits (other
 summation orders), as tested against autograd.
 
-The loss is defined in :func:`semdp.algos.on_policy.critic_loss`; this kernel is the presets'
-opt-in (``gradients="written"``) and is checked against that definition when an on-policy
+The loss is defined in :func:`semdp.algos.critic_regression.critic_loss`; this kernel is the
+presets' opt-in (``gradients="written"``) and is checked against that definition when an on-policy
 algorithm is built (:meth:`~semdp.algos.fast.written.WrittenDerivatives.check_critics`: loss and
 gradient on a random minibatch, to ``RTOL`` = 1e-4 of their size; they agree to ~2e-7).
 Why it is kept: in one PPO-Lag update (``conf/algo/ppo_lag.yaml``, ``env=point_push1``; medians
@@ -121,7 +121,7 @@ class StackedCritics:
         max_grad_norm: float | None,
         stop: Callable[[], bool] | None = None,
     ) -> tuple[float, float] | None:
-        """:func:`~semdp.algos.on_policy.regress_critics` on the stacked network
+        """:func:`~semdp.algos.critic_regression.regress_critics` on the stacked network
         (its arguments, with the targets as three tensors, and its return value)."""
         flat, exp_avg, exp_avg_sq = self.optimizer.buffers()
         index = self.index

@@ -6,8 +6,8 @@ Each method returns the fast implementation where the networks and optimiser all
 exactly as :class:`~semdp.algos.on_policy.Autograd` makes it do everywhere.
 
 The losses are defined once, in autograd, by the algorithms (:meth:`semdp.algos.ppo.PPO.actor_loss`,
-:func:`semdp.algos.on_policy.critic_loss`); a kernel here restates their derivatives by hand, so
-the ``check_*`` methods, called when an algorithm is built, compare each kernel with the
+:func:`semdp.algos.critic_regression.critic_loss`); a kernel here restates their derivatives by
+hand, so the ``check_*`` methods, called when an algorithm is built, compare each kernel with the
 algorithm's own loss on a random minibatch drawn from a generator of their own (the run's random
 streams are not touched): loss value and gradient to :data:`RTOL` of their size. An edit to a
 loss that the kernel does not mirror fails there, naming the kernel and ``algo.gradients=autograd``.
@@ -66,7 +66,7 @@ class WrittenDerivatives:
         l2: float, loss: Callable[..., tuple[torch.Tensor, ...]], obs_dim: int,
     ) -> None:
         """:class:`StackedCritics` against ``loss`` (the algorithm's
-        :func:`~semdp.algos.on_policy.critic_loss`) on a random minibatch."""
+        :func:`~semdp.algos.critic_regression.critic_loss`) on a random minibatch."""
         stacked = self.critics(critic_r, critic_c, optimizer)
         if stacked is None:
             return
@@ -78,7 +78,7 @@ class WrittenDerivatives:
         grad = _flat_grad(expected, [*critic_r.parameters(), *critic_c.parameters()])
         value, written = stacked.loss_and_grad(obs, ret_r, ret_c, l2)
         where = ("StackedCritics", "semdp/algos/fast/stacked_critics.py",
-                 "semdp.algos.on_policy.critic_loss")
+                 "semdp.algos.critic_regression.critic_loss")
         _compare(*where, "the loss", expected, value)
         _compare(*where, "the gradient", grad, written)
 
