@@ -29,7 +29,8 @@ factor                    what changes (``semdp-eval`` arguments)
     semdp-bench price runs=[zoo:semdp_car_push1_s1] factors=[configured,no_filter] episodes=10
 
 ``set=`` names sets of policies (``push1``, the default when no ``runs=`` are given;
-``button1``; ``button1_whole_bin``, the archived Button1 runs), ``runs=`` adds run directories or ``zoo:<name>`` entries.
+``button1``; ``button1_whole_bin``, the archived Button1 runs), ``runs=`` adds run
+directories or ``zoo:<name>`` entries.
 
 Per policy and factor it records reward, cost, episodes with cost and every intervention rate
 (filter %: low-level commands the filter replaced; filter escape %: of those by an escape
