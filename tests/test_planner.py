@@ -4,7 +4,6 @@ fallback, bad inputs, settings, batch, configs."""
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -343,37 +342,6 @@ def test_planner_pickles_without_compiled_solvers(planners) -> None:
         clone = pickle.loads(pickle.dumps(planner))
         after = clone.plan([0, 0], [2, 0], [[1, 0.1]], warm_start=False)
         np.testing.assert_allclose(after.waypoints, before.waypoints, atol=1e-9)
-
-
-def test_geometry_segment_distance_hand_values() -> None:
-    points = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
-    centres = np.array([[1.0, 1.0], [3.0, -1.0], [-1.0, 0.0]])
-    expected = np.array([[1.0, np.sqrt(2.0), 1.0], [1.0, np.sqrt(2.0), 3.0]])
-    np.testing.assert_allclose(segment_distances(points, centres), expected)
-    np.testing.assert_allclose(segment_distances(points[:1], centres),
-                               point_distances(points[:1], centres))
-
-
-def test_geometry_segment_distances_equal_the_clipped_projection_bit_for_bit() -> None:
-    """Oracle: the projection parameter by np.where over a 0/0-tolerant division, clipped by
-    np.clip (zero-length segments -- a resting plan -- included); no warning either way."""
-    rng = np.random.default_rng(3)
-    for _ in range(300):
-        points = rng.normal(size=(int(rng.integers(2, 12)), 2))
-        points[rng.random(len(points)) < 0.3] = points[0]  # repeated waypoints
-        centres = rng.normal(size=(int(rng.integers(1, 6)), 2)) * 2.0
-        a = points[:-1, None, :]
-        ab = (points[1:] - points[:-1])[:, None, :]
-        length_sq = np.einsum("nmk,nmk->nm", ab, ab)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t = np.where(length_sq > 0.0,
-                         np.einsum("nmk,nmk->nm", centres[None] - a, ab) / length_sq, 0.0)
-        diff = a + np.clip(t, 0.0, 1.0)[..., None] * ab - centres[None]
-        expected = np.sqrt(np.einsum("nmk,nmk->nm", diff, diff))
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            got = segment_distances(points, centres)
-        assert np.array_equal(got, expected)
 
 
 def test_gp_prior_reach_matches_continuous_minimum_energy() -> None:

@@ -10,9 +10,10 @@ the model's ``brake_points`` once with CasADi symbols
 step and the regions, and evaluates it through zero-copy buffers.
 
 Same numbers, not close ones: the traced expressions are the plain path's, operation by
-operation (``x*x + y*y`` under the root, as NumPy's norm; ``fmin``/``fmax`` for ``min``/
-``max``; the same libm ``cos``/``sin``; a model constant in a product of constants kept as a
-parameter, so that CasADi does not multiply the constants out first), so the kernel's clearance
+operation (the distance of :mod:`solvers.planner.geometry`, which the plain path evaluates
+on NumPy arrays; ``fmin``/``fmax`` for ``min``/``max``; the same libm ``cos``/``sin``; a model
+constant in a product of constants kept as a parameter, so that CasADi does not multiply the
+constants out first), so the kernel's clearance
 equals the plain path's bit for bit (tests/test_brake_kernel.py checks it on random states and
 on whole filtered episodes) and the filter takes the same decisions with either. Region counts
 are padded to the next power of two with regions far away (one compiled function per count).
@@ -31,6 +32,7 @@ import numpy as np
 
 from semdp.embedded.robot_models import Ops, RobotState
 from solvers.native import native_function
+from solvers.planner.geometry import CASADI, length, point_offset
 
 #: A padding region: far from any arena, radius 0 (its gap never the smallest).
 FAR = 1.0e9
@@ -61,9 +63,8 @@ def _build(model: Any, slots: int) -> tuple[ca.Function, np.ndarray]:
     gaps = []
     for px, py in points:
         for j in range(slots):
-            dx = px - regions[3 * j]
-            dy = py - regions[3 * j + 1]
-            gaps.append(ca.sqrt(dx * dx + dy * dy) - regions[3 * j + 2])
+            offset = point_offset(px, py, regions[3 * j], regions[3 * j + 1])
+            gaps.append(length(*offset, ops=CASADI) - regions[3 * j + 2])
     function = ca.Function(f"brake_clearance_{slots}", [state, regions, ca.vertcat(*symbols)],
                            [ca.mmin(ca.vertcat(*gaps))])
     return function, np.array(values, dtype=np.float64)

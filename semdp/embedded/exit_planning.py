@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from semdp.embedded.robot_models import RobotModel, RobotState
+from solvers.planner.geometry import point_distances
 
 #: Steps an escape from inside a region is held in :func:`exit_option`'s rollouts: the Button
 #: task's grace period after a press (``BUTTON_RESAMPLING_DELAY``), within which the robot must
@@ -77,7 +78,7 @@ def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
             s = model.step(s, a)
             poses[i, t] = (s.x, s.y, s.yaw)
     flat = poses.reshape(-1, 3)
-    gaps = np.linalg.norm(flat[:, None, :2] - regions[None, :, :2], axis=-1) - regions[:, 2]
+    gaps = point_distances(flat[:, :2], regions[:, :2]) - regions[:, 2]
     exiting = contact & ~outside
     if exiting.any():  # R without the robot's extent, from the outline
         gaps[:, exiting] = model.outline.distance(

@@ -47,6 +47,7 @@ from semdp.embedded.lidar_bounds import BEARING_BOUNDS, RECORDED_BOUNDS
 from semdp.embedded.perception import OBSTACLE_KINDS, PERCEPTION_MODES
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
+from solvers.planner.geometry import point_distances
 
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
@@ -151,7 +152,7 @@ class SafetyShield(CostRegions):
         points = np.empty((model.horizon + 1, 2))
         points[0] = (s.x, s.y)
         points[1:] = model.brake_path(s)
-        gaps = np.linalg.norm(points[:, None, :] - regions[None, :, :2], axis=-1)
+        gaps = point_distances(points, regions[:, :2])
         return float((gaps - regions[None, :, 2]).min())
 
     def filter(self, action: np.ndarray, base: Any, obs: np.ndarray) -> np.ndarray:
@@ -187,7 +188,7 @@ class SafetyShield(CostRegions):
         regions, contact, orbit = self._regions(base, obs)
         if not len(regions):
             return action
-        near = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) - regions[:, 2] < reach
+        near = _distances(state, regions) - regions[:, 2] < reach
         regions, contact, orbit = regions[near], contact[near], orbit[near]
         if not len(regions):
             return action
@@ -211,7 +212,7 @@ class SafetyShield(CostRegions):
         must not take the robot into another (a hazard)."""
         scores = [self._clearance(model, state, a, regions) for a in options]
         best = int(np.argmax(scores))
-        outside = np.linalg.norm(regions[:, :2] - (state.x, state.y), axis=1) >= regions[:, 2]
+        outside = _distances(state, regions) >= regions[:, 2]
         if scores[best] < 0.0 and (contact & ~outside).any():
             return exit_option(model, state, options, regions, contact, orbit, outside,
                                self.margin)
@@ -220,3 +221,8 @@ class SafetyShield(CostRegions):
         kept = [i for i, a in enumerate(options)
                 if self._clearance(model, state, a, regions[outside]) >= 0.0]
         return max(kept, key=scores.__getitem__) if kept and best not in kept else best
+
+
+def _distances(state: RobotState, regions: np.ndarray) -> np.ndarray:
+    """The root's distance to each region's centre (the distance of thesis Eq. 3.7)."""
+    return point_distances(np.array([[state.x, state.y]]), regions[:, :2])[0]

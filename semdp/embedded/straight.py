@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from solvers.planner import PlanResult
-from solvers.planner.geometry import segment_distances
+from solvers.planner.geometry import point_distances, segment_distances
 
 #: ``PlanResult.backend`` and ``status`` of a straight-line plan.
 STRAIGHT = "straight"
@@ -71,7 +71,7 @@ class StraightLinePlanner:
         if len(obstacles):
             obstacles = obstacles.reshape(len(obstacles), -1)
             radii = obstacles[:, 2] if obstacles.shape[1] > 2 else np.zeros(len(obstacles))
-            gaps = np.linalg.norm(waypoints[:, None] - obstacles[None, :, :2], axis=-1) - radii
+            gaps = point_distances(waypoints, obstacles[:, :2]) - radii
             clearance = float(gaps.min())
             continuous = float((segment_distances(waypoints, obstacles[:, :2]) - radii).min())
         gap = waypoints[-1] - subgoal

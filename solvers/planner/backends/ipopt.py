@@ -30,6 +30,14 @@ import casadi as ca
 import numpy as np
 
 from solvers.planner.backends.base import bucket_size, hard_constraint_reach
+from solvers.planner.geometry import (
+    length,
+    point_offset,
+    segment_offsets,
+    separation,
+    squared_length,
+    symbolic_offset,
+)
 from solvers.planner.problem.certificate import Iterate
 from solvers.planner.problem.context import ProblemContext
 from solvers.planner.problem.gp_prior import GPPrior
@@ -115,14 +123,15 @@ def build_ipopt(
     for j in range(n_slots):
         centre = p[2 + 2 * j : 4 + 2 * j]
         if not continuous:
-            constraints.extend(ca.sumsqr(positions[i] - centre) for i in range(1, n + 1))
+            constraints.extend(squared_length(*symbolic_offset(positions[i], centre))
+                               for i in range(1, n + 1))
         if continuous:
             for i in range(n):
                 normal = ca.SX.sym(f"n_{j}_{i}", 2)
                 normals.append(normal)
-                constraints.append(ca.dot(normal, positions[i] - centre))
-                constraints.append(ca.dot(normal, positions[i + 1] - centre))
-                constraints.append(ca.sumsqr(normal))
+                for end in (i, i + 1):  # both ends of segment i
+                    constraints.append(separation(normal, symbolic_offset(positions[end], centre)))
+                constraints.append(squared_length(normal[0], normal[1]))
     x = ca.vertcat(z, *normals)
     g = ca.vertcat(*constraints)
     options = {"print_time": False, "ipopt": dict(ipopt_options)}
@@ -178,7 +187,7 @@ def solve_ipopt(
     params = np.concatenate([goal, centres_p.ravel()])
     need = np.zeros(slots)
     need[:m] = np.maximum(required, 0.0)
-    distance = np.hypot(centres_p[:, 0], centres_p[:, 1])
+    distance = length(*point_offset(0.0, 0.0, centres_p[:, 0], centres_p[:, 1]))  # from x_1
     active = np.zeros(slots, dtype=bool)
     active[:m] = required > 0.0  # a row ||x - o||^2 >= 0 is vacuous (and degenerate at x = o)
     lbg = [np.array([-np.inf])]
@@ -209,15 +218,13 @@ def solve_ipopt(
         ubg.append(rows_u.ravel())
         # initial separating directions: from the centre to the segment's closest point
         normals = np.zeros((slots, n, 2))
-        for j in range(m):
-            a = positions[:-1]
-            ab = positions[1:] - a
-            ao = centres[j] - a
-            length_sq = np.einsum("nk,nk->n", ab, ab) + 1e-12
-            t = np.clip(np.einsum("nk,nk->n", ao, ab) / length_sq, 0, 1)
-            d = a + t[:, None] * ab - centres[j]
-            norm = np.hypot(d[:, 0], d[:, 1])
-            normals[j] = np.where(norm[:, None] > 1e-9, d / np.maximum(norm, 1e-9)[:, None], 0.0)
+        if m:
+            dx, dy = segment_offsets(positions, centres, eps=1e-12)
+            d = np.stack((dx.T, dy.T), axis=-1)
+            # the direction of the offset, normalised by np.hypot as these initial guesses were
+            # recorded (length() moves IPOPT's continuous plans by up to 2e-10 m)
+            norm = np.hypot(dx, dy).T[..., None]
+            normals[:m] = np.where(norm > 1e-9, d / np.maximum(norm, 1e-9), 0.0)
         x0[prior.n_var :] = normals.ravel()
         fixed = np.repeat(~on.ravel(), 2)
         lbx[prior.n_var :][fixed] = 0.0

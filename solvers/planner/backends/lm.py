@@ -38,6 +38,7 @@ from solvers.native import cache_dir, compiler, native_function
 from solvers.planner.backends.banded_least_squares import BandedKernel
 from solvers.planner.backends.base import bucket_size
 from solvers.planner.backends.native_lm import native_banded_kernel
+from solvers.planner.geometry import symbolic_distance
 from solvers.planner.problem.certificate import Iterate
 from solvers.planner.problem.context import ProblemContext
 from solvers.planner.problem.gp_prior import GPPrior
@@ -109,14 +110,6 @@ def w_order(n_waypoints: int) -> np.ndarray:
     return perm
 
 
-def _segment_distance(a: ca.SX, b: ca.SX, centre: ca.SX) -> ca.SX:
-    ab = b - a
-    t = ca.dot(centre - a, ab) / (ca.dot(ab, ab) + _DISTANCE_EPS)
-    t = ca.fmin(ca.fmax(t, 0.0), 1.0)
-    diff = a + t * ab - centre
-    return ca.sqrt(ca.dot(diff, diff) + _DISTANCE_EPS)
-
-
 def build_lm_functions(
     prior: GPPrior, problem: ProblemSettings, settings: LMSettings, n_slots: int
 ) -> tuple[ca.Function, ca.Function]:
@@ -157,11 +150,8 @@ def build_lm_functions(
         centre = p[2 + 2 * j : 4 + 2 * j]
         radius = p[2 + 2 * n_slots + j]
         for i in range(1, n + 1):
-            if continuous:
-                distance = _segment_distance(positions[i - 1], positions[i], centre)
-            else:
-                diff = positions[i] - centre
-                distance = ca.sqrt(ca.dot(diff, diff) + _DISTANCE_EPS)
+            ends = (positions[i - 1], positions[i]) if continuous else (positions[i], None)
+            distance = symbolic_distance(*ends, centre, eps=_DISTANCE_EPS)
             residuals.append(obstacle_scale * ca.fmax(0.0, radius - distance))
     r_band = ca.vertcat(*residuals)
     r_budget = ca.sqrt(lam_budget * settings.budget_weight) * ca.fmax(

@@ -37,6 +37,7 @@ import osqp
 import scipy.sparse as sp
 
 from solvers.planner.backends.base import bucket_size, hard_constraint_reach
+from solvers.planner.geometry import length, point_offsets, segment_offsets
 from solvers.planner.problem.certificate import Iterate
 from solvers.planner.problem.context import ProblemContext
 from solvers.planner.problem.gp_prior import GPPrior
@@ -154,17 +155,10 @@ class ScpProgram:
         self, positions: np.ndarray, centres: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Unit normals (m, n, 2) and current distances (m, n) per (obstacle, waypoint/segment)."""
-        if self.continuous:
-            a = positions[None, :-1, :]
-            ab = (positions[1:] - positions[:-1])[None, :, :]
-            ao = centres[:, None, :] - a
-            length = np.einsum("mnk,mnk->mn", ab, ab)
-            t = np.clip(np.einsum("mnk,mnk->mn", ao, ab) / np.maximum(length, 1e-18), 0.0, 1.0)
-            diff = a + t[..., None] * ab - centres[:, None, :]
-        else:
-            diff = positions[None, 1:, :] - centres[:, None, :]
-        dist = np.sqrt(np.einsum("mnk,mnk->mn", diff, diff))
-        normals = diff / np.maximum(dist, 1e-12)[..., None]
+        dx, dy = (segment_offsets(positions, centres) if self.continuous
+                  else point_offsets(positions[1:], centres))
+        dist = length(dx, dy).T
+        normals = np.stack((dx.T, dy.T), axis=-1) / np.maximum(dist, 1e-12)[..., None]
         return normals, dist
 
     def _clear(self, z: np.ndarray, centres: np.ndarray, need: np.ndarray) -> bool:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import lapack
 
+from solvers.planner.geometry import point_distances
 from solvers.planner.problem.gp_prior import GPPrior
 
 
@@ -42,8 +43,7 @@ def detour_guess(
     via_index: list[int] = []
     via_point: list[np.ndarray] = []
     # every obstacle's distance to every waypoint at once; its nearest waypoint and that distance
-    rel = positions[None, :, :] - np.asarray(centres)[:, None, :]
-    dist = np.sqrt(rel[:, :, 0] * rel[:, :, 0] + rel[:, :, 1] * rel[:, :, 1])
+    dist = point_distances(positions, np.asarray(centres)).T
     nearest = dist.argmin(axis=1)
     nearest_dist = dist[np.arange(len(nearest)), nearest]
     for centre, radius, k, d in zip(centres, clearances, nearest.tolist(),

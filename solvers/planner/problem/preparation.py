@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from solvers.planner.geometry import point_distances
+
 #: Escape mode: a waypoint may be at most this much (m) closer to a violated obstacle than the
 #: start is (the solvers are asked for a tenth of it, so their tolerances fit in between).
 ESCAPE_TOLERANCE = 1e-6
@@ -109,7 +111,7 @@ def prepare(
     centres, radii = validate_obstacles(obstacles)
     centres = centres - start_arr
     clearances = clearance + radii
-    start_distances = np.sqrt(np.einsum("mk,mk->m", centres, centres))
+    start_distances = point_distances(np.zeros((1, 2)), centres)[0]  # x_1 = start: Eq. 3.7
     gaps = start_distances - clearances
     escape = gaps < 0.0
     candidates = np.flatnonzero(gaps <= reach)
