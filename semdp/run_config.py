@@ -1,48 +1,24 @@
 """A run directory's saved ``config.yaml``, loaded so that it still instantiates today.
 
 Runs keep the config they ran with (``semdp-train`` writes it; resume, ``semdp-eval`` and the
-reference tables read it back). Classes and functions that moved since keep working: every
-``_target_`` in :data:`RENAMED_TARGETS` is rewritten to the module path of today on load; nothing
-else changes.
+reference tables read it back). A config of an earlier version is brought to today's form on load
+by :func:`semdp.legacy.upgrade_run_config` (moved ``_target_`` paths, planner nodes of earlier
+forms, ...); a config of today's form is left as it is.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import yaml
-from omegaconf import DictConfig, ListConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf
 
-#: ``_target_`` written by earlier versions -> the same class today.
-RENAMED_TARGETS: dict[str, str] = {
-    "semdp.common.lagrange.Lagrange": "semdp.algos.lagrangian.Lagrange",
-    "semdp.common.lagrange.PIDLagrange": "semdp.algos.pid_lagrange.PIDLagrange",
-    "semdp.common.self_paced.SelfPacedThresholds": "semdp.algos.sp_ppo_lag.SelfPacedThresholds",
-    "semdp.embedded.artifacts.after_training": "semdp.reporting.semdp_run.after_training",
-}
-
-
-def rename_targets(node: Any) -> int:
-    """Rewrite the moved ``_target_`` paths of ``node`` in place; return how many."""
-    count = 0
-    if isinstance(node, DictConfig):
-        target = node.get("_target_") if "_target_" in node else None
-        if isinstance(target, str) and target in RENAMED_TARGETS:
-            node._target_ = RENAMED_TARGETS[target]
-            count += 1
-        for key in node:
-            if not (OmegaConf.is_missing(node, key) or OmegaConf.is_interpolation(node, key)):
-                count += rename_targets(node[key])
-    elif isinstance(node, ListConfig):
-        for item in node:
-            count += rename_targets(item)
-    return count
+from semdp.legacy import upgrade_run_config
 
 
 def load_run_config(path: str | Path) -> DictConfig:
-    """``OmegaConf.load`` of a run's ``config.yaml`` (or of the run directory holding it) with
-    the moved ``_target_`` paths renamed.
+    """``OmegaConf.load`` of a run's ``config.yaml`` (or of the run directory holding it) in
+    today's form (:func:`semdp.legacy.upgrade_run_config`).
 
     Raises:
         ValueError: no such file, or one that is not a YAML mapping (one line naming it).
@@ -61,5 +37,7 @@ def load_run_config(path: str | Path) -> DictConfig:
                          f"{getattr(exc, 'problem', None) or type(exc).__name__}") from None
     if not isinstance(cfg, DictConfig):
         raise ValueError(f"{path} is not a mapping")
-    rename_targets(cfg)
-    return cfg
+    try:
+        return upgrade_run_config(cfg)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None

@@ -54,9 +54,9 @@ PLAN = [
     "start=[0,0,0] subgoal=[2,1]", "start=[0,0] subgoal=[2,1] obstacles=[[1,nan]]",
     "start=[0,0] subgoal=[2,1] obstacles=[[1,0.3,-1]]", "start=[0,0] subgoal=[2,1] backend=nope",
     "start=[0,0] subgoal=[2,1] backends=[]", "start=[0,0] subgoal=[2,1] backends=[nope]",
-    "start=[0,0] subgoal=[2,1] planner.n_waypoints=0",
-    "start=[0,0] subgoal=[2,1] planner.n_waypoints=-3",
-    "start=[0,0] subgoal=[2,1] planner.clearance=nan", "start=[0,0] subgoal=[2,1] foo=1",
+    "start=[0,0] subgoal=[2,1] planner.problem.n_waypoints=0",
+    "start=[0,0] subgoal=[2,1] planner.problem.n_waypoints=-3",
+    "start=[0,0] subgoal=[2,1] planner.problem.clearance=nan", "start=[0,0] subgoal=[2,1] foo=1",
     "planner=nope start=[0,0] subgoal=[2,1]",
 ]
 REPORT = [

@@ -4,7 +4,6 @@ path: equal bit for bit on random states and regions, and the same filtered epis
 from __future__ import annotations
 
 import math
-import pickle
 
 import gymnasium as gym
 import numpy as np
@@ -79,10 +78,3 @@ def test_the_filter_takes_the_same_decisions_with_every_kernel(robot: str, kerne
     assert np.array_equal(compiled, plain)
     assert compiled_stats == plain_stats
     assert compiled_stats[2] + compiled_stats[3] > 0  # the filter acted in this run
-
-
-def test_a_filter_pickled_before_the_kernel_option_uses_the_compiled_one() -> None:
-    shield = SafetyShield()
-    del shield.__dict__["kernel"]  # what a checkpoint written before the option holds
-    restored = pickle.loads(pickle.dumps(shield))
-    assert restored.kernel == "compiled" and "kernel" not in restored.__dict__

@@ -22,6 +22,7 @@ from semdp.evaluation.config_edits import edited_config
 from semdp.evaluation.errors import EvalError
 from semdp.evaluation.options import parse_arguments
 from semdp.evaluation.run import evaluate_run
+from semdp.legacy import upgrade_run_config
 from semdp.rendering import video as video_module
 from semdp.rendering.overlay import COST, PERCEIVED, FrameNotes, annotate, world_to_pixel
 from semdp.rendering.recorder import FrameRecorder
@@ -219,19 +220,19 @@ def _semdp_config() -> Any:
 
 def test_planner_shorthand_composes_the_node_and_keeps_the_runs_clearance_and_rescue() -> None:
     saved = _semdp_config()
-    saved.env.eval_wrapper.planner.clearance = 0.6
+    saved.env.eval_wrapper.planner.problem.clearance = 0.6
     cfg = edited_config(saved, parse_arguments(["planner=lm"]))
     node = cfg.env.eval_wrapper.planner
     assert node.backend._target_ == "solvers.planner.LMSettings" and node.backend.adaptive is False
-    assert node.clearance == 0.6 and node.rescue_backend == "ipopt"  # the Car's IPOPT rescue
+    assert node.problem.clearance == 0.6 and node.rescue_backend == "ipopt"  # the Car's rescue
     assert saved.env.eval_wrapper.planner.backend.adaptive is True  # the saved config is untouched
     straight = edited_config(saved, parse_arguments(["planner=straight"])).env.eval_wrapper
     assert straight.planner.rescue_backend is None and straight.planner.clearance == 0.6
     both = edited_config(saved, parse_arguments(["clearance=0.25", "perception=gt",
                                                  "lambda=fixed"])).env.eval_wrapper
-    assert (both.planner.clearance, both.perception, both.planner.backend.adaptive) == (
+    assert (both.planner.problem.clearance, both.perception, both.planner.backend.adaptive) == (
         0.25, "gt", False)
-    assert cfg.env.wrapper.planner.clearance == 0.5  # training planner untouched
+    assert cfg.env.wrapper.planner.problem.clearance == 0.5  # training planner untouched
 
 
 def test_legacy_string_planner_and_follower_become_nodes() -> None:
@@ -240,10 +241,10 @@ def test_legacy_string_planner_and_follower_become_nodes() -> None:
         "_target_": "semdp.embedded.wrapper.SafetyEmbeddedEnv", "_partial_": True,
         "_recursive_": False, "planner": "lm_adaptive", "planner_kwargs": {"clearance": 0.6},
         "follower": "auto", "perception": "lidar"}}})
-    cfg = edited_config(legacy, parse_arguments(["lambda=fixed"]))
+    cfg = edited_config(upgrade_run_config(legacy), parse_arguments(["lambda=fixed"]))
     node = cfg.env.eval_wrapper
     assert "planner_kwargs" not in node and "_recursive_" not in node and node.follower is None
-    assert node.planner.clearance == 0.6 and node.planner.backend.adaptive is False
+    assert node.planner.problem.clearance == 0.6 and node.planner.backend.adaptive is False
 
 
 def test_added_keys_and_parse_errors() -> None:

@@ -150,8 +150,8 @@ def _semdp_env_node() -> dict[str, Any]:
 def test_with_clearance_changes_only_the_evaluation_planner() -> None:
     node = _semdp_env_node()
     out = with_clearance(node, 0.25)
-    assert out["eval_wrapper"]["planner"]["clearance"] == 0.25
-    assert node["eval_wrapper"]["planner"]["clearance"] == 0.5  # the input is not mutated
+    assert out["eval_wrapper"]["planner"]["problem"]["clearance"] == 0.25
+    assert node["eval_wrapper"]["planner"]["problem"]["clearance"] == 0.5  # input not mutated
     assert out["wrapper"] == node["wrapper"]
     assert is_semdp_env(node)
     with pytest.raises(ValueError, match="clearance"):

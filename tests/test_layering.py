@@ -4,8 +4,9 @@ and semdp's packages in layers, each importing only from its own layer or lower 
 0. libraries: ``solvers``, ``sims``;
 1. common: ``semdp.common`` and the top-level modules every layer uses: the package itself
    (``semdp/__init__.py``), ``numerics``, ``paths``, ``env_products``, ``configs`` (composing
-   ``conf/``), ``run_config`` (loading a run's saved config), ``envs`` (the env factory) and
-   ``zoo_data`` (where the policy zoo lives: the checkout or the installed package);
+   ``conf/``), ``run_config`` (loading a run's saved config), ``legacy`` (the files of earlier
+   versions, read on loading), ``envs`` (the env factory) and ``zoo_data`` (where the policy zoo
+   lives: the checkout or the installed package);
 2. methods: ``semdp.algos`` (the algorithms) and ``semdp.embedded`` (the Safety-Embedded MDP at
    run time, thesis Alg. 2);
 3. runs: ``semdp.build`` (a training run's objects), ``semdp.evaluation`` (loading and
@@ -211,7 +212,7 @@ def test_library_code_does_not_import_the_apps() -> None:
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("solvers", "sims"),
     ("semdp", "semdp.common", "semdp.numerics", "semdp.paths", "semdp.env_products",
-     "semdp.configs", "semdp.run_config", "semdp.envs", "semdp.zoo_data"),
+     "semdp.configs", "semdp.run_config", "semdp.legacy", "semdp.envs", "semdp.zoo_data"),
     ("semdp.algos", "semdp.embedded"),
     ("semdp.build", "semdp.evaluation", "semdp.reporting", "semdp.experiments",
      "semdp.rendering", "semdp.benchmarks"),

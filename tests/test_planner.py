@@ -21,7 +21,7 @@ from solvers.planner import (
 )
 from solvers.planner.backends.lm import LMBackend
 from solvers.planner.geometry import point_distances, segment_distances
-from solvers.planner.problem import build_gp_prior, problem_keys
+from solvers.planner.problem import build_gp_prior
 
 BACKENDS = ["ipopt", "lm", "scp"]
 EPS = 0.5
@@ -34,7 +34,7 @@ def planners() -> dict[tuple[str, bool], SafeTrajectoryPlanner]:
     return {
         (backend, continuous): SafeTrajectoryPlanner(
             backend=LMSettings(adaptive=True) if backend == "lm" else backend,
-            continuous=continuous,
+            problem=ProblemSettings(continuous=continuous),
         )
         for backend in BACKENDS
         for continuous in (False, True)
@@ -62,7 +62,7 @@ def _check_property(planner: SafeTrajectoryPlanner, problems: list) -> None:
             independent = point_distances(result.waypoints, obstacles[:, :2]) - radii
             assert independent.min() >= EPS - 1e-6, (k, result.status, independent.min())
             assert result.min_clearance == pytest.approx(independent.min(), abs=1e-12)
-            if planner.continuous:
+            if planner.problem.continuous:
                 assert result.min_clearance_continuous >= EPS - 1e-6, (k, result.status)
                 sampled = _sampled_segment_clearance(result.waypoints, obstacles)
                 assert sampled >= EPS - 1e-6, (k, result.status, sampled)
@@ -272,10 +272,7 @@ def test_planner_rejects_bad_input(planners, kwargs, match) -> None:
     ("kwargs", "match"),
     [
         ({"backend": "sqp"}, "backend must be one of"),
-        ({"clearance": -0.1}, "clearance must be"),
-        ({"sigma_smooth": 0.0}, "sigma_smooth must be"),
-        ({"n_waypoints": 2}, "n_waypoints must be"),
-        ({"dt": float("nan")}, "dt must be"),
+        ({"problem": {"clearance": 0.6}}, "problem must be a ProblemSettings"),
         ({"rescue_backend": "scp"}, "rescue_backend must be"),
         ({"backend": {"iterations": 5}}, "backend must be one of"),
     ],
@@ -285,9 +282,23 @@ def test_planner_constructor_rejects_bad_settings(kwargs, match) -> None:
         SafeTrajectoryPlanner(**kwargs)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"clearance": -0.1}, "clearance must be"),
+        ({"sigma_smooth": 0.0}, "sigma_smooth must be"),
+        ({"n_waypoints": 2}, "n_waypoints must be"),
+        ({"dt": float("nan")}, "dt must be"),
+    ],
+)
+def test_problem_settings_reject_bad_values(kwargs, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        ProblemSettings(**kwargs)
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_planner_keeps_nearest_obstacles_and_certifies_all(backend) -> None:
-    planner = SafeTrajectoryPlanner(backend=backend, max_obstacles=2)
+    planner = SafeTrajectoryPlanner(backend=backend, problem=ProblemSettings(max_obstacles=2))
     rng = np.random.default_rng(3)
     obstacles = np.vstack([[1.0, 0.05], [1.6, -0.6], [0.9, 0.9], rng.uniform(-2, 3, (9, 2))])
     obstacles = obstacles[np.linalg.norm(obstacles, axis=1) > EPS + 0.05]
@@ -381,15 +392,15 @@ def test_planner_configs_instantiate(name: str) -> None:
     assert planner.plan([0, 0], [1, 0], [[0.5, 0.6]]).feasible
 
 
-def test_constructor_problem_keywords_are_exactly_the_problem_settings() -> None:
-    import inspect
+def test_the_problem_node_mirrors_the_problem_settings() -> None:
+    """``conf/planner/_base.yaml``'s ``problem:`` holds exactly the fields of ProblemSettings,
+    in order, with their defaults: a planner key is defined once (the dataclass)."""
+    from omegaconf import OmegaConf
 
-    parameters = inspect.signature(SafeTrajectoryPlanner.__init__).parameters
-    constructor = {name: p.default for name, p in parameters.items()
-                   if name not in ("self", "backend", "rescue_backend", "flat")}
-    settings = {f.name: f.default for f in dataclasses.fields(ProblemSettings)}
-    assert list(constructor) == list(settings) == list(problem_keys())
-    assert constructor == settings
+    node = OmegaConf.to_container(OmegaConf.load(CONF_PLANNER / "_base.yaml"))["problem"]
+    assert node.pop("_target_") == "solvers.planner.ProblemSettings"
+    fields = {f.name: f.default for f in dataclasses.fields(ProblemSettings)}
+    assert list(node) == list(fields) and node == fields
 
 
 @pytest.mark.parametrize("name", sorted(p.stem for p in CONF_PLANNER.glob("*.yaml")
@@ -402,7 +413,7 @@ def test_every_conf_planner_key_is_a_constructor_argument(name: str) -> None:
     node = _compose_planner(name)
     parameters = inspect.signature(get_class(node._target_).__init__).parameters
     keys = set(node) - {"_target_"}
-    assert keys <= set(parameters) - {"self", "flat"}, sorted(keys - set(parameters))
+    assert keys <= set(parameters) - {"self"}, sorted(keys - set(parameters))
     backend = node.get("backend")
     if backend is not None:  # the backend node holds only its own class's knobs
         fields = {f.name for f in dataclasses.fields(get_class(backend._target_))}
@@ -432,11 +443,8 @@ def test_every_conf_planner_key_is_a_constructor_argument(name: str) -> None:
 def test_settings_reject_wrong_types(cls, kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
         cls(**kwargs)
-    with pytest.raises(ValueError, match=match):  # through the planner, as Hydra builds it
-        if cls is ProblemSettings:
-            SafeTrajectoryPlanner(**kwargs)
-        else:
-            SafeTrajectoryPlanner(backend=cls(**kwargs))
+    with pytest.raises(ValueError, match=match):  # as Hydra builds it: the node's object first
+        SafeTrajectoryPlanner(**{"problem" if cls is ProblemSettings else "backend": cls(**kwargs)})
 
 
 def test_settings_are_frozen_normalised_and_rebuild_the_planner() -> None:
@@ -453,16 +461,17 @@ def test_settings_are_frozen_normalised_and_rebuild_the_planner() -> None:
     with pytest.raises(dataclasses.FrozenInstanceError):
         settings.backend.iterations = 3  # type: ignore[misc]
     planner = SafeTrajectoryPlanner.from_settings(settings)
-    assert planner.settings is settings and planner.n_waypoints == 20 and planner.continuous
+    assert planner.settings is settings and planner.n_waypoints == 20
+    assert planner.problem is problem and planner.problem.continuous
     assert planner.solver.context.prior.n_waypoints == 20 and planner.backend == "lm"
     assert planner.rescue_solver.options["tol"] == 1e-6
     # nothing to rescue an IPOPT plan with; a name gives the backend's defaults
     assert PlannerSettings(backend="ipopt", rescue="ipopt").rescue is None
     assert PlannerSettings(backend="scp").backend == SCPSettings()
-    with pytest.raises(AttributeError, match="read-only"):
+    with pytest.raises(AttributeError):
         planner.clearance = 0.6
     same = SafeTrajectoryPlanner(backend=settings.backend, rescue_backend=settings.rescue,
-                                 **dataclasses.asdict(problem))
+                                 problem=problem)
     assert same.settings == settings
     a = planner.plan([0, 0], [1.5, 0.5], [[0.8, 0.2]])
     b = same.plan([0, 0], [1.5, 0.5], [[0.8, 0.2]])

@@ -14,6 +14,7 @@ import pytest
 
 from solvers.planner import (
     LMSettings,
+    ProblemSettings,
     SafeTrajectoryPlanner,
     plan_batch,
     random_problems,
@@ -50,7 +51,7 @@ def _stop_helpers():
 @pytest.fixture(scope="module")
 def planners() -> dict[str, SafeTrajectoryPlanner]:
     return {
-        name: SafeTrajectoryPlanner(**kwargs, max_obstacles=MAX_OBSTACLES)
+        name: SafeTrajectoryPlanner(**kwargs, problem=ProblemSettings(max_obstacles=MAX_OBSTACLES))
         for name, kwargs in VARIANTS.items()
     }
 

@@ -90,13 +90,14 @@ def test_plan_compare_applies_planner_overrides_to_every_planner(tmp_path: Path)
     cfg = OmegaConf.create({"backends": ["ipopt", "scp"], "backend": None, "start": [0, 0],
                             "subgoal": [2.5, 0], "obstacles": [[1.2, 0.0]], "repeats": 1,
                             "plot": False})
-    comparison = plan_app.run_compare(cfg, tmp_path, ["continuous=true"])
+    comparison = plan_app.run_compare(cfg, tmp_path, ["problem.continuous=true"])
     for row in comparison.rows:
         assert row.min_clearance_continuous >= 0.5 - 1e-9 and not row.fallback
     assert (tmp_path / "compare.csv").is_file() and not (tmp_path / "compare.png").exists()
     assert plan_app.planner_overrides(
-        ["planner=lm", "planner.continuous=true", "start=[0,0]", "planner.clearance=0.6"]
-    ) == ["continuous=true", "clearance=0.6"]
+        ["planner=lm", "planner.problem.continuous=true", "start=[0,0]",
+         "planner.problem.clearance=0.6"]
+    ) == ["problem.continuous=true", "problem.clearance=0.6"]
 
 
 def test_plan_cli_compare_unknown_backend_fails_with_one_line(tmp_path: Path) -> None:
@@ -124,7 +125,7 @@ def test_plan_cli_compare_malformed_obstacles_fail_with_one_line(tmp_path: Path)
 
 
 def test_plan_bad_planner_setting_is_one_value_error(tmp_path: Path) -> None:
-    node = plan_app.compose_planner("lm", ["clearance=-1"])
+    node = plan_app.compose_planner("lm", ["problem.clearance=-1"])
     cfg = OmegaConf.create({"planner": node, "backend": None, "start": [0, 0],
                             "subgoal": [1, 0], "obstacles": [], "plot": False})
     with pytest.raises(ValueError, match=r"^planner: clearance must be a finite number >= 0"):

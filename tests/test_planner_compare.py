@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from semdp.embedded.straight import StraightLinePlanner
-from solvers.planner import Comparison, SafeTrajectoryPlanner, compare, compare_backends
+from solvers.planner import (
+    Comparison,
+    ProblemSettings,
+    SafeTrajectoryPlanner,
+    compare,
+    compare_backends,
+)
 from solvers.planner.compare import COLUMNS
 
 EPS = 0.5
@@ -32,8 +38,8 @@ def test_open_space_every_backend_reaches_the_subgoal() -> None:
 
 @pytest.mark.parametrize("continuous", [False, True])
 def test_obstacle_on_the_straight_line_every_certified_plan_keeps_clearance(continuous) -> None:
-    comparison = compare_backends([0.0, 0.0], [2.5, 0.0], [[1.2, 0.0]], continuous=continuous,
-                                  repeats=1)
+    comparison = compare_backends([0.0, 0.0], [2.5, 0.0], [[1.2, 0.0]], repeats=1,
+                                  problem=ProblemSettings(continuous=continuous))
     for row in comparison.rows:
         assert row.feasible and not row.fallback, row
         assert row.min_clearance >= EPS - 1e-9, row
@@ -125,6 +131,6 @@ def test_comparison_reports_the_smoothness_budget_each_backend_keeps() -> None:
     assert "(over, ×" in comparison.table() and lm.record()["within_budget"] is False
     for row in (ipopt, lm):
         result = row.result
-        dt = SafeTrajectoryPlanner().dt
+        dt = ProblemSettings().dt
         assert math.isclose(row.smoothness, _gp_smoothness(result.waypoints, result.velocities, dt),
                             rel_tol=1e-9)

@@ -31,7 +31,8 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
     base = _edited("configured")
     wrapper = base.env.eval_wrapper
     assert (wrapper.perception, wrapper.shield.perception) == ("lidar", "lidar")
-    assert wrapper.shield.lidar_bearing_bound == "aliasing" and wrapper.planner.clearance == 0.5
+    assert wrapper.shield.lidar_bearing_bound == "aliasing"
+    assert wrapper.planner.problem.clearance == 0.5
     changed = {
         "planner_gt": {"env.eval_wrapper.perception": "gt"},
         "filter_gt": {"env.eval_wrapper.shield.perception": "gt"},
@@ -41,7 +42,7 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
         "no_filter": {"env.eval_wrapper.shield": None},
         "gt_all": {"env.eval_wrapper.perception": "gt",
                    "env.eval_wrapper.shield.perception": "gt"},
-        "clearance_0.3": {"env.eval_wrapper.planner.clearance": 0.3},
+        "clearance_0.3": {"env.eval_wrapper.planner.problem.clearance": 0.3},
         "sampled": {},  # an evaluation setting, not a config key
     }
     assert set(changed) | {"configured"} == set(FACTORS)

@@ -154,13 +154,13 @@ def test_semdp_rejects_bad_arguments() -> None:
 def test_semdp_config_overrides_reach_the_instantiated_planner(
     compose_train: Callable[..., DictConfig],
 ) -> None:
-    cfg = compose_train("algo=sac", "env=semdp_mass_push1", "env.planner.clearance=0.7",
-                        "env.planner.continuous=true", "planner@env.eval_planner=straight",
+    cfg = compose_train("algo=sac", "env=semdp_mass_push1", "env.planner.problem.clearance=0.7",
+                        "env.planner.problem.continuous=true", "planner@env.eval_planner=straight",
                         "env.eval_planner.rescue_backend=null")  # a straight line has no rescue
     env = make_env(cfg.env.id, {}, OmegaConf.to_container(cfg.env.wrapper, resolve=True))
     semdp = env.env
     assert isinstance(semdp, SafetyEmbeddedEnv)
-    assert semdp.planner.clearance == 0.7 and semdp.planner.continuous
+    assert semdp.planner.clearance == 0.7 and semdp.planner.problem.continuous
     assert isinstance(semdp.follower, ProportionalFollower)  # the Mass robot's follower
     eval_env = make_env(cfg.env.id, {}, OmegaConf.to_container(cfg.env.eval_wrapper, resolve=True))
     assert isinstance(eval_env.env.planner, StraightLinePlanner)

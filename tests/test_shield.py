@@ -125,15 +125,6 @@ def test_fallback_when_braking_is_not_certified(fallback: str) -> None:
         assert (shield.stats.braked, shield.stats.escaped) == (0, 1)
 
 
-def test_a_filter_pickled_before_the_fallback_option_resumes_as_it_was() -> None:
-    import pickle
-
-    shield = SafetyShield()
-    del shield.__dict__["fallback"]  # what a checkpoint written before the option holds
-    restored = pickle.loads(pickle.dumps(shield))
-    assert restored.fallback == "escape" and "fallback" not in restored.__dict__
-
-
 def test_shield_rejects_bad_arguments() -> None:
     with pytest.raises(ValueError, match="margin"):
         SafetyShield(margin=-0.1)
@@ -143,9 +134,13 @@ def test_shield_rejects_bad_arguments() -> None:
         SafetyShield(kinds=("lava",))
     with pytest.raises(ValueError, match="fallback"):
         SafetyShield(fallback="pray")
+    with pytest.raises(ValueError, match="lidar_bearing_bound"):
+        SafetyShield(lidar_bearing_bound="sonar")
+    with pytest.raises(ValueError, match="lidar_bearing_bound"):  # what runs recorded before
+        SafetyShield(lidar_bearing_bound=True)  # the aliasing bound hold: semdp/legacy.py
 
 
-def _covered_miss(bound: str | bool, distance: float) -> float:
+def _covered_miss(bound: str, distance: float) -> float:
     """Largest distance, over bearings swept through two LiDAR bins, by which the true hazard
     centre lies outside every perceived region's bearing allowance (<= 0: always covered)."""
     env = gym.make("sims/SafetyPointGoal1-v0")
@@ -171,7 +166,6 @@ def test_lidar_regions_cover_the_true_hazard_at_any_bearing(distance: float) -> 
     # contain the true centre; the bin-centre reconstruction misses it by up to ~0.196 * d
     assert _covered_miss("aliasing", distance) <= 1e-9
     assert _covered_miss("bin", distance) <= 1e-9
-    assert _covered_miss(True, distance) <= 1e-9  # configs recorded before: "bin"
     miss = _covered_miss("none", distance)
     assert 0.15 * distance < miss <= 0.2 * distance
 
@@ -256,18 +250,6 @@ def test_the_aliasing_interval_is_needed_where_a_neighbour_bin_holds_another_obj
     gaps = np.linalg.norm(np.array([first, second])[:, None] - regions[None, :, :2],
                           axis=-1) - allowance
     assert np.all(gaps.min(axis=1) <= 1e-9)
-
-
-def test_a_filter_pickled_with_a_boolean_bound_resumes_as_it_was() -> None:
-    import pickle
-
-    shield = SafetyShield()
-    shield.__dict__["lidar_bearing_bound"] = True  # what a checkpoint written before holds
-    restored = pickle.loads(pickle.dumps(shield))
-    assert restored.bearing_bound == "bin"
-    assert SafetyShield(lidar_bearing_bound=False).bearing_bound == "none"
-    with pytest.raises(ValueError, match="lidar_bearing_bound"):
-        SafetyShield(lidar_bearing_bound="sonar")
 
 
 def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_bin() -> None:

@@ -33,6 +33,7 @@ from semdp.paths import REPO_ROOT
 from solvers.planner import (
     IpoptSettings,
     LMSettings,
+    ProblemSettings,
     SafeTrajectoryPlanner,
     SCPSettings,
     plan_batch,
@@ -81,7 +82,8 @@ def _variant_kwargs(name: str) -> dict[str, object]:
     if base not in VARIANTS:
         valid = [*VARIANTS, *(f"{v}_cont" for v in VARIANTS)]
         raise SystemExit(f"unknown backend variant {name!r}; valid: {valid}")
-    return {"backend": VARIANTS[base], "continuous": name.endswith("_cont")}
+    return {"backend": VARIANTS[base],
+            "problem": ProblemSettings(continuous=name.endswith("_cont"))}
 
 
 def main(argv: list[str]) -> None:

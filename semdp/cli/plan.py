@@ -103,7 +103,8 @@ def run(cfg: DictConfig, output_dir: Path) -> PlanResult:
 
 def planner_overrides(task_overrides: Sequence[str]) -> list[str]:
     """The command-line overrides of planner keys, without the ``planner.`` prefix
-    (``planner.continuous=true`` -> ``continuous=true``), which compare mode applies to every
+    (``planner.problem.continuous=true`` -> ``problem.continuous=true``), which compare mode
+    applies to every
     planner; the group choice ``planner=...`` is not one of them."""
     prefix = f"{PLANNER_GROUP}."
     return [o[len(prefix):] for o in task_overrides if o.startswith(prefix)]

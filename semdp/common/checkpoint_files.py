@@ -22,6 +22,8 @@ from typing import Any
 
 import torch
 
+from semdp import legacy
+
 SIGNATURE_SUFFIX = ".sig"
 KEY_ENV = "SEMDP_CHECKPOINT_KEY"
 TRUST_ENV = "SEMDP_TRUST_CHECKPOINTS"
@@ -105,7 +107,9 @@ def load_checkpoint_file(path: str | Path, map_location: str | None = None) -> d
     """The payload of a checkpoint written by :func:`save_checkpoint_file`, after
     :func:`check_checkpoint_file` (the whole pickle is then loaded: environments included)."""
     check_checkpoint_file(path)
-    payload = torch.load(path, map_location=map_location, weights_only=False)
+    # the unpickler of semdp.legacy: objects pickled by earlier versions come back in today's form
+    payload = torch.load(path, map_location=map_location, weights_only=False,
+                         pickle_module=legacy)
     if not isinstance(payload, dict):
         raise CheckpointError(f"{path}: a checkpoint holds a mapping, this one a "
                               f"{type(payload).__name__}")

@@ -78,9 +78,6 @@ class ClearanceKernel:
     :func:`kernel_for` shares one per model class.
     """
 
-    #: Class-level default: a kernel pickled before ``native`` existed runs in the VM.
-    native: bool = False
-
     def __init__(self, model: Any, native: bool = False) -> None:
         if not compiles(model):
             raise ValueError(f"{type(model).__name__} has no brake_points() to compile")

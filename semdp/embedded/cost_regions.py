@@ -32,7 +32,6 @@ from semdp.embedded.lidar_bounds import (
     BEARING_ERROR_PER_METRE,
     LIDAR_RANGE,
     RANGE_TOLERANCE,
-    RECORDED_BOUNDS,
     bin_regions,
 )
 from semdp.embedded.perception import (
@@ -63,25 +62,19 @@ class CostRegions:
         margin: extra clearance beyond each cost region (m).
         perception: ``"lidar"`` or ``"gt"``.
         kinds: obstacle kinds filtered against.
-        lidar_bearing_bound: how a lit LiDAR bin's bearing is bounded (:attr:`bearing_bound`).
+        lidar_bearing_bound: how a lit LiDAR bin's bearing is bounded, one of
+            :data:`~semdp.embedded.lidar_bounds.BEARING_BOUNDS`.
     """
 
     margin: float
     perception: str
     kinds: tuple[str, ...]
-    lidar_bearing_bound: str | bool
+    lidar_bearing_bound: str
     #: Each filtered kind's cost radius (the robot's extent added to the contact kinds).
     _radii: dict[str, float]
     #: The buttons LiDAR channel's memory (:class:`~semdp.embedded.perception.ButtonMemory`),
-    #: made on first use; class-level so that filters pickled before it existed have it.
-    _buttons: ButtonMemory | None = None
-
-    @property
-    def bearing_bound(self) -> str:
-        """:attr:`lidar_bearing_bound` as one of
-        :data:`~semdp.embedded.lidar_bounds.BEARING_BOUNDS` (filters pickled before the
-        aliasing bound hold ``True`` / ``False``)."""
-        return RECORDED_BOUNDS.get(self.lidar_bearing_bound, self.lidar_bearing_bound)
+    #: made on first use (None until then).
+    _buttons: ButtonMemory | None
 
     @property
     def button_memory(self) -> ButtonMemory:
@@ -112,7 +105,7 @@ class CostRegions:
         """:meth:`cost_regions` and, per row, whether its cost is a contact with the robot's
         outline (its ``R`` then holds the robot's extent) and whether it is a gremlin's orbit
         disc (a moving object's: inside it the gremlin may come, elsewhere on its orbit)."""
-        if self.perception == "lidar" and self.bearing_bound != "none":
+        if self.perception == "lidar" and self.lidar_bearing_bound != "none":
             return self._bounded_lidar_regions(base, obs)
         rows, contact, orbit = [], [], []
         for kind in self.kinds:
@@ -152,12 +145,12 @@ class CostRegions:
     def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every lit bin of each kind's LiDAR as a region bounding its object's bearing
-        (:func:`~semdp.embedded.lidar_bounds.bin_regions` under :attr:`bearing_bound`), and the
-        flags of :meth:`_regions`."""
+        (:func:`~semdp.embedded.lidar_bounds.bin_regions` under :attr:`lidar_bearing_bound`),
+        and the flags of :meth:`_regions`."""
         rows: list[tuple[float, float, float]] = []
         contact: list[bool] = []
         orbit: list[bool] = []
-        bound = self.bearing_bound
+        bound = self.lidar_bearing_bound
         for kind, radius, shift, frame in self._lidar_channels(base, obs):
             sx, sy = float(shift[0]), float(shift[1])
             found = bin_regions(frame, bound)
@@ -179,9 +172,9 @@ class CostRegions:
         (their frame is the current one and their shift zero); buttons and gremlins go through
         :meth:`_lidar_channels` (the buttons' memory, the orbit)."""
         bound = math.inf
-        bounded = self.bearing_bound != "none"
+        bounded = self.lidar_bearing_bound != "none"
         shrink = 1.0 - BEARING_ERROR_PER_METRE if bounded else 1.0
-        slack = RANGE_TOLERANCE if self.bearing_bound == "aliasing" else 0.0
+        slack = RANGE_TOLERANCE if self.lidar_bearing_bound == "aliasing" else 0.0
         slices = base.obs_slices
         moving = []
         for kind in self.kinds:

@@ -39,10 +39,9 @@ from sims.safety_gym.perception import BINS
 LIDAR_RANGE = 3.0
 #: Largest distance between an object at range d and its bin-centre reconstruction, per metre.
 BEARING_ERROR_PER_METRE = 2.0 * math.sin(math.pi / (2 * BINS))
-#: How a LiDAR object's bearing is bounded (module docstring); ``True`` / ``False`` of runs
-#: recorded before the aliasing bound are ``"bin"`` / ``"none"`` (:data:`RECORDED_BOUNDS`).
+#: How a LiDAR object's bearing is bounded (module docstring); runs recorded before the
+#: aliasing bound hold ``True`` / ``False`` (read as ``"bin"`` / ``"none"``: semdp/legacy.py).
 BEARING_BOUNDS = ("aliasing", "bin", "none")
-RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}
 #: Widening of the aliasing interval of ``α``: float32 readings carry a relative rounding of
 #: 6e-8 each, so a ratio of two is off by less than 2e-7.
 ALIAS_TOLERANCE = 1e-6

@@ -43,7 +43,7 @@ import numpy as np
 from semdp.embedded.brake_kernel import compiles, kernel_for
 from semdp.embedded.cost_regions import CONTACT_KINDS, CostRegions
 from semdp.embedded.exit_planning import exit_option
-from semdp.embedded.lidar_bounds import BEARING_BOUNDS, RECORDED_BOUNDS
+from semdp.embedded.lidar_bounds import BEARING_BOUNDS
 from semdp.embedded.perception import OBSTACLE_KINDS, PERCEPTION_MODES
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
@@ -70,8 +70,7 @@ class SafetyShield(CostRegions):
         lidar_bearing_bound: LiDAR only, how a lit bin's bearing is bounded
             (:data:`~semdp.embedded.lidar_bounds.BEARING_BOUNDS`): ``"aliasing"`` (the neighbours'
             readings bound it), ``"bin"`` (the whole bin), ``"none"`` (the planner's peak
-            reconstruction as it is); ``True`` / ``False`` (configs recorded before the
-            aliasing bound) are ``"bin"`` / ``"none"``.
+            reconstruction as it is).
         fallback: when neither the action nor braking is certified: ``"escape"`` (the best
             one-step clearance among braking and the escape actions) or ``"brake"``.
         kernel: how :meth:`clearance` is evaluated (:data:`KERNELS`): ``"compiled"`` (the
@@ -81,12 +80,6 @@ class SafetyShield(CostRegions):
             path, the reference).
     """
 
-    #: Class-level default: filters pickled before ``fallback`` existed (checkpoints hold the
-    #: env) resume with the behaviour they had.
-    fallback: str = "escape"
-    #: Class-level default: filters pickled before ``kernel`` existed take the compiled one
-    #: (the same numbers).
-    kernel: str = "compiled"
     #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that filters
     #: unpickled from a checkpoint have it too.
@@ -94,7 +87,7 @@ class SafetyShield(CostRegions):
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
-                 lidar_bearing_bound: str | bool = "aliasing", fallback: str = "escape",
+                 lidar_bearing_bound: str = "aliasing", fallback: str = "escape",
                  kernel: str = "compiled") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
@@ -108,19 +101,19 @@ class SafetyShield(CostRegions):
         bad = [k for k in kinds if k not in OBSTACLE_KINDS]
         if bad:
             raise ValueError(f"unknown obstacle kinds {bad}; valid: {list(OBSTACLE_KINDS)}")
-        bound = RECORDED_BOUNDS.get(lidar_bearing_bound, lidar_bearing_bound)  # type: ignore[call-overload]
-        if bound not in BEARING_BOUNDS:
+        if lidar_bearing_bound not in BEARING_BOUNDS:
             raise ValueError(f"shield lidar_bearing_bound must be one of {BEARING_BOUNDS}, "
                              f"got {lidar_bearing_bound!r}")
         self.margin = float(margin)
         self.perception = "lidar" if perception == "lidar_refined" else perception
         self.kinds = tuple(kinds)
-        self.lidar_bearing_bound = bound
+        self.lidar_bearing_bound = lidar_bearing_bound
         self.fallback = fallback
         self.kernel = kernel
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
         self._radii: dict[str, float] = {}
+        self._buttons = None
 
     def bind(self, base: Any) -> None:
         """Attach to the unwrapped env: its robot's model and each kind's cost radius."""

@@ -131,9 +131,8 @@ class SafetyEmbeddedEnv(gym.Wrapper):
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that envs
     #: unpickled from a checkpoint have it too.
     recorder: Callable[[LowLevelRecord], None] | None = None
-    #: The planner's memory of the buttons LiDAR channel, made on first use; class-level so
-    #: that envs pickled before it existed have it.
-    _buttons: ButtonMemory | None = None
+    #: The planner's memory of the buttons LiDAR channel, made on first use (None until then).
+    _buttons: ButtonMemory | None
 
     def __init__(
         self,
@@ -177,6 +176,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         if not callable(getattr(follower, "act", None)):
             raise ValueError(f"follower must have an act() method, got {follower!r}")
         self.planner = planner
+        self._buttons = None
         self.follower: Follower = follower
         self.k = int(k)
         self.subgoal_scale = float(subgoal_scale)

@@ -1,28 +1,18 @@
 """Apply ``semdp-eval``'s shorthands and overrides to a run's saved, resolved ``config.yaml``.
 
-The saved config of a Safety-Embedded MDP run holds its evaluation wrapper as
-``env.eval_wrapper`` with the planner as a full ``conf/planner`` node (``_target_``, ``backend``,
-``clearance``, ``rescue_backend``, ...) and the follower as a node of the robot's
-``conf/robot/<robot>.yaml`` (docs/semdp.md). The shorthands edit
-that node:
+The saved config of a Safety-Embedded MDP run (loaded in today's form by
+:func:`semdp.run_config.load_run_config`) holds its evaluation wrapper as ``env.eval_wrapper``
+with the planner as a full ``conf/planner`` node (``_target_``, ``problem``, ``backend``,
+``rescue_backend``) and the follower as a node of the robot's ``conf/robot/<robot>.yaml``
+(docs/semdp.md). The shorthands edit that node:
 
 - ``planner=<name>``: ``conf/planner/<name>.yaml`` composed with Hydra's compose API; the run's
-  ``clearance`` is kept, and its ``rescue_backend`` too when the planner class is the same;
-- ``clearance=<eps'>``: the planner's ``clearance``;
-- ``lambda=fixed|adaptive``: ``backend.adaptive`` of an LM planner (``lm_adaptive`` of a flat
-  node; thesis App. B.2.3);
+  clearance is kept, and its ``rescue_backend`` too when the planner class is the same;
+- ``clearance=<eps'>``: the planner's clearance (``problem.clearance``; ``clearance`` of a
+  planner without a ``problem`` node, the straight line);
+- ``lambda=fixed|adaptive``: ``backend.adaptive`` of an LM planner (thesis App. B.2.3);
 - ``perception=lidar|lidar_refined|gt``: the wrapper's ``perception`` (the filter keeps its
   own).
-
-A planner node holds the problem's keys (``clearance``, ...), ``rescue_backend`` and a
-``backend`` node with its own ``_target_`` (``solvers.planner.LMSettings`` with ``adaptive``, ...);
-runs saved before the planner's settings were split hold one flat node instead (``backend: lm``,
-``lm_adaptive``, ``lm_iterations``, ...), which the planner still accepts
-(``solvers.planner.settings.PlannerSettings.from_flat``) and the shorthands edit as it is.
-
-Runs saved before the planner and follower became nodes (``planner: lm_adaptive`` with
-``planner_kwargs``, ``follower: auto`` or a follower name ``<robot>`` / ``<robot>_ppo_lag``) are
-first rewritten into the node form.
 """
 
 from __future__ import annotations
@@ -53,35 +43,6 @@ def _compose(group: str, name: str) -> DictConfig:
         raise EvalError(str(exc)) from None
 
 
-def _legacy_follower(name: str) -> DictConfig:
-    """A follower saved by name (``point``, ``car_ppo_lag``, ...): the ``follower`` or
-    ``ppo_lag_follower`` node of ``conf/robot/<robot>.yaml`` that holds it now."""
-    robot, _, kind = name.partition("_")
-    key = {"": "follower", "ppo_lag": "ppo_lag_follower"}.get(kind)
-    if key is None:
-        raise EvalError(f"unknown follower {name!r}: <robot> or <robot>_ppo_lag")
-    return _compose("robot", robot)[key]
-
-
-def normalise_legacy(env: DictConfig) -> None:
-    """Rewrite string planners / followers of SEMDP wrapper nodes into ``conf`` nodes, in place."""
-    for name in ("wrapper", "eval_wrapper"):
-        node = env.get(name)
-        if not is_semdp_wrapper(node):
-            continue
-        planner = node.get("planner")
-        if isinstance(planner, str):
-            composed = _compose("planner", planner)
-            node.planner = OmegaConf.merge(composed, node.get("planner_kwargs") or {})
-        follower = node.get("follower")
-        if follower == "auto":
-            node.follower = None
-        elif isinstance(follower, str):
-            node.follower = _legacy_follower(follower)
-        for key in ("planner_kwargs", "_recursive_"):
-            node.pop(key, None)
-
-
 def evaluation_wrapper(cfg: DictConfig, what: str) -> DictConfig:
     """The SEMDP wrapper node the evaluation uses (a copy of ``wrapper`` when ``eval_wrapper``
     is null), for the shorthand ``what``.
@@ -107,14 +68,21 @@ def _planner(cfg: DictConfig, what: str) -> DictConfig:
     return node
 
 
+def _holding_clearance(planner: DictConfig) -> DictConfig:
+    """The node of a planner that holds its ``clearance`` (its ``problem`` node, if any)."""
+    problem = planner.get("problem")
+    return problem if OmegaConf.is_dict(problem) else planner
+
+
 def replace_planner(cfg: DictConfig, name: str) -> None:
     """``planner=<name>``: a fresh ``conf/planner`` node, keeping the run's eps' and rescue."""
     wrapper = evaluation_wrapper(cfg, "planner")
     old = wrapper.get("planner")
     new = _compose("planner", name)
     if OmegaConf.is_dict(old):
-        if "clearance" in old and "clearance" in new:
-            new.clearance = old.clearance
+        before, after = _holding_clearance(old), _holding_clearance(new)
+        if "clearance" in before and "clearance" in after:
+            after.clearance = before.clearance
         if old.get("_target_") == new.get("_target_") and "rescue_backend" in old:
             new.rescue_backend = old.rescue_backend
     wrapper.planner = new
@@ -123,21 +91,20 @@ def replace_planner(cfg: DictConfig, name: str) -> None:
 def set_clearance(cfg: DictConfig, clearance: float) -> None:
     """``clearance=<eps'>`` on the evaluation planner."""
     node = _planner(cfg, "clearance")
-    if "clearance" not in node:
+    holder = _holding_clearance(node)
+    if "clearance" not in holder:
         raise EvalError(f"the evaluation planner {node.get('_target_')} has no clearance")
-    node.clearance = float(clearance)
+    holder.clearance = float(clearance)
 
 
 def set_lambda(cfg: DictConfig, mode: str) -> None:
     """``lambda=fixed|adaptive`` on an LM evaluation planner (a ``backend`` node of
-    ``LMSettings``, or a flat node saved before the planner's settings were split)."""
+    ``LMSettings``)."""
     node = _planner(cfg, "lambda")
     backend = node.get("backend")
     adaptive = mode == "adaptive"
     if OmegaConf.is_dict(backend) and str(backend.get("_target_", "")) == LM_SETTINGS_TARGET:
         backend.adaptive = adaptive
-    elif backend == "lm" and "lm_adaptive" in node:  # flat node
-        node.lm_adaptive = adaptive
     else:
         kind = backend.get("_target_") if OmegaConf.is_dict(backend) else backend
         raise EvalError(f"lambda= needs the LM planner; the evaluation planner is "
@@ -164,8 +131,6 @@ def apply_overrides(cfg: DictConfig, options: EvalOptions) -> None:
 def edited_config(saved: DictConfig, options: EvalOptions) -> DictConfig:
     """A copy of ``saved`` with the shorthands, then the plain overrides, applied."""
     cfg = copy.deepcopy(saved)
-    if "env" in cfg and OmegaConf.is_dict(cfg.env):
-        normalise_legacy(cfg.env)
     if options.planner is not None:
         replace_planner(cfg, options.planner)
     if options.clearance is not None:

@@ -56,7 +56,9 @@ def with_clearance(env_cfg: dict[str, Any], clearance: float) -> dict[str, Any]:
             f"env {out.get('id')!r} is not a Safety-Embedded MDP env (no planner in env.{key}); "
             "the eps' trade-off needs a semdp_* env config"
         )
-    node["planner"]["clearance"] = float(clearance)
+    planner = node["planner"]
+    holder = planner["problem"] if isinstance(planner.get("problem"), dict) else planner
+    holder["clearance"] = float(clearance)
     return out
 
 

@@ -2,13 +2,15 @@
 
 Usage::
 
-    from solvers.planner import LMSettings, SafeTrajectoryPlanner
+    from solvers.planner import LMSettings, ProblemSettings, SafeTrajectoryPlanner
     planner = SafeTrajectoryPlanner(backend="ipopt")            # a backend's defaults
-    planner = SafeTrajectoryPlanner(backend=LMSettings(adaptive=True), clearance=0.6)
+    planner = SafeTrajectoryPlanner(backend=LMSettings(adaptive=True),
+                                    problem=ProblemSettings(clearance=0.6))
     result = planner.plan(start=[0, 0], subgoal=[2, 1], obstacles=[[1, 0.3], [0.4, -0.8]])
 
 The problem (:mod:`.problem`) is apart from its solvers (:mod:`.backends`, one module and one
-settings class each); the layout is described in docs/planner.md, "Code layout".
+settings class each); the layout is described in docs/planner.md, "Code layout". Files of
+earlier versions (flat config nodes, old pickles) are read by :mod:`.legacy` only.
 """
 
 from __future__ import annotations

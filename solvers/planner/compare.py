@@ -28,6 +28,7 @@ import numpy as np
 from solvers.planner.backends import BACKENDS
 from solvers.planner.planner import SafeTrajectoryPlanner
 from solvers.planner.problem.preparation import validate_obstacles, validate_point
+from solvers.planner.problem.settings import ProblemSettings
 from solvers.planner.protocol import Planner
 from solvers.planner.result import PlanResult
 
@@ -201,17 +202,18 @@ def compare_backends(
     *,
     backends: Iterable[str] = BACKENDS,
     repeats: int = 3,
-    **settings: object,
+    problem: ProblemSettings | None = None,
+    rescue_backend: str | None = None,
 ) -> Comparison:
     """:func:`compare` with one :class:`SafeTrajectoryPlanner` per backend name (its default
-    settings), all with the same other ``settings`` (constructor keywords of the problem and the
-    rescue, e.g. ``continuous=True``).
+    settings), all with the same ``problem`` (e.g. ``ProblemSettings(continuous=True)``) and
+    ``rescue_backend``.
 
     Raises:
         ValueError: An unknown backend, a bad setting, or what :func:`compare` rejects.
     """
     planners: dict[str, Planner] = {
-        name: SafeTrajectoryPlanner(backend=name, **settings)  # type: ignore[arg-type]
+        name: SafeTrajectoryPlanner(name, problem, rescue_backend)
         for name in backends
     }
     return compare(start, subgoal, obstacles, planners=planners, repeats=repeats)

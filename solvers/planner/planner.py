@@ -17,45 +17,21 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Sequence
-from typing import Generic, TypeVar
 
 import numpy as np
 
 from solvers.planner.backends.base import Backend, bucket_size
 from solvers.planner.backends.ipopt import IpoptBackend, IpoptSettings
-from solvers.planner.legacy_pickles import legacy_context
 from solvers.planner.problem.certificate import Iterate
 from solvers.planner.problem.context import ProblemContext
 from solvers.planner.problem.gp_prior import GPPrior
 from solvers.planner.problem.preparation import PreparedProblem
 from solvers.planner.problem.settings import ProblemSettings
 from solvers.planner.result import PlanResult
-from solvers.planner.settings import FLAT_BACKEND_KEYS, AnyBackendSettings, PlannerSettings
+from solvers.planner.settings import AnyBackendSettings, PlannerSettings
 from solvers.planner.warm_start import WarmStartMemory
 
 logger = logging.getLogger(__name__)
-
-T = TypeVar("T")
-
-
-class _ProblemSetting(Generic[T]):
-    """A read-only view of one problem setting: ``planner.clearance`` is
-    ``planner.settings.problem.clearance``."""
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.name = name
-
-    def __get__(self, planner: SafeTrajectoryPlanner | None, owner: type | None = None) -> T:
-        if planner is None:
-            return self  # type: ignore[return-value]
-        return getattr(planner.settings.problem, self.name)  # type: ignore[no-any-return]
-
-    def __set__(self, planner: SafeTrajectoryPlanner, value: object) -> None:
-        raise AttributeError(
-            f"planner settings are read-only ({self.name}); build a new planner, e.g. "
-            f"SafeTrajectoryPlanner.from_settings(dataclasses.replace(planner.settings, "
-            f"problem=dataclasses.replace(planner.settings.problem, {self.name}=...)))"
-        )
 
 
 class SafeTrajectoryPlanner:
@@ -67,19 +43,13 @@ class SafeTrajectoryPlanner:
             :class:`~solvers.planner.backends.scp.SCPSettings`; a ``conf/planner`` file's
             ``backend:`` node) or a backend name (``"ipopt"``, ``"lm"``, ``"scp"``: its
             defaults).
-        n_waypoints, clearance, max_obstacles, dt, sigma_smooth, smooth_weight, continuous,
-            goal_tolerance, feasibility_margin: The problem's settings, documented in
-            :class:`~solvers.planner.problem.settings.ProblemSettings` (readable here as
-            attributes: ``planner.clearance``).
+        problem: The problem's settings (:class:`~solvers.planner.problem.settings.
+            ProblemSettings`, a ``conf/planner`` file's ``problem:`` node); None: its defaults.
         rescue_backend: None or ``"ipopt"`` (or IPOPT settings): see
             :class:`~solvers.planner.settings.PlannerSettings`.
-        **flat: The backend keys of runs saved before the settings were split (``lm_adaptive``,
-            ``ipopt_max_iter``, ...; ``backend`` must then be a name): converted by
-            :meth:`PlannerSettings.from_flat`.
 
     Raises:
         ValueError: A bad setting (the message names the key and the value).
-        TypeError: An unknown keyword.
 
     Attributes:
         settings: The validated settings (read-only; build a new planner to change them).
@@ -92,43 +62,14 @@ class SafeTrajectoryPlanner:
     lazily), so it can be sent to vectorised-environment worker processes.
     """
 
-    n_waypoints = _ProblemSetting[int]()
-    clearance = _ProblemSetting[float]()
-    max_obstacles = _ProblemSetting[int]()
-    dt = _ProblemSetting[float]()
-    sigma_smooth = _ProblemSetting[float]()
-    smooth_weight = _ProblemSetting[float]()
-    continuous = _ProblemSetting[bool]()
-    goal_tolerance = _ProblemSetting[float]()
-    feasibility_margin = _ProblemSetting[float]()
-
     def __init__(
         self,
         backend: AnyBackendSettings | str = "ipopt",
-        n_waypoints: int = 30,
-        clearance: float = 0.5,
-        max_obstacles: int = 16,
-        dt: float = 10.0 / 29.0,
-        sigma_smooth: float = 0.048,
-        smooth_weight: float = 0.01,
-        continuous: bool = False,
-        goal_tolerance: float = 0.05,
-        feasibility_margin: float = 1e-5,
+        problem: ProblemSettings | None = None,
         rescue_backend: IpoptSettings | str | None = None,
-        **flat: object,
     ) -> None:
-        problem = {
-            "n_waypoints": n_waypoints, "clearance": clearance, "max_obstacles": max_obstacles,
-            "dt": dt, "sigma_smooth": sigma_smooth, "smooth_weight": smooth_weight,
-            "continuous": continuous, "goal_tolerance": goal_tolerance,
-            "feasibility_margin": feasibility_margin,
-        }
-        if flat:
-            self._build(_flat_settings(backend, problem, rescue_backend, flat))
-            return
-        self._build(PlannerSettings(
-            ProblemSettings(**problem), backend, rescue_backend  # type: ignore[arg-type]
-        ))
+        self._build(PlannerSettings(ProblemSettings() if problem is None else problem, backend,
+                                    rescue_backend))  # type: ignore[arg-type]
 
     @classmethod
     def from_settings(cls, settings: PlannerSettings) -> SafeTrajectoryPlanner:
@@ -145,6 +86,21 @@ class SafeTrajectoryPlanner:
             None if settings.rescue is None else settings.rescue.build(self.context)
         )
         self.memory = WarmStartMemory(settings.problem.dt)
+
+    @property
+    def problem(self) -> ProblemSettings:
+        """The problem's settings (``settings.problem``)."""
+        return self.settings.problem
+
+    @property
+    def n_waypoints(self) -> int:
+        """N, waypoints of every plan, the start included (:class:`~solvers.planner.Planner`)."""
+        return self.settings.problem.n_waypoints
+
+    @property
+    def clearance(self) -> float:
+        """eps' (m), the certificate's clearance (:class:`~solvers.planner.Planner`)."""
+        return self.settings.problem.clearance
 
     @property
     def backend(self) -> str:
@@ -210,14 +166,15 @@ class SafeTrajectoryPlanner:
             plan = self._rescue(prep, plan)
         result = certificate.certify(prep, plan, backend=self.backend, tic=tic,
                                      smoothness=self.prior.smoothness,
-                                     smoothness_budget=self.sigma_smooth)
+                                     smoothness_budget=self.problem.sigma_smooth)
         self.memory.remember(prep.start, prep.start + prep.goal, result.waypoints)
         return result
 
     def warmup(self) -> SafeTrajectoryPlanner:
         """Build every compiled solver now (one per obstacle-slot count) instead of on first use,
         the rescue's cold IPOPT programs included."""
-        counts = sorted({bucket_size(k, self.max_obstacles) for k in range(self.max_obstacles + 1)})
+        most = self.problem.max_obstacles
+        counts = sorted({bucket_size(k, most) for k in range(most + 1)})
         self.solver.warmup(counts)
         if self.rescue_solver is not None:
             self.rescue_solver.warmup(counts, attempts=("cold",))
@@ -246,31 +203,9 @@ class SafeTrajectoryPlanner:
         return {"settings": self.settings, "context": self.context, "memory": self.memory}
 
     def __setstate__(self, state: dict[str, object]) -> None:
-        settings = state["settings"]
-        assert isinstance(settings, PlannerSettings)
-        context = state["context"]
-        if not isinstance(context, ProblemContext):  # pickled before the settings were split
-            context = legacy_context(context, settings.problem)
-        self._build(settings, context)
+        self._build(state["settings"], state["context"])  # type: ignore[arg-type]
         self.memory = state["memory"]  # type: ignore[assignment]
 
     def __repr__(self) -> str:
         return f"SafeTrajectoryPlanner({self.settings!r})"
 
-
-def _flat_settings(
-    backend: object, problem: dict[str, object], rescue: object, flat: dict[str, object]
-) -> PlannerSettings:
-    """The constructor's legacy path: flat backend keywords through
-    :meth:`PlannerSettings.from_flat`."""
-    unknown = sorted(set(flat) - set(FLAT_BACKEND_KEYS))
-    if unknown:
-        raise TypeError(f"SafeTrajectoryPlanner got unexpected keyword arguments {unknown}")
-    if not isinstance(backend, str):
-        raise ValueError(f"the flat backend keys {sorted(flat)} need the backend as a name "
-                         f"(ipopt, lm, scp), got {backend!r}; give them in its settings object")
-    if rescue is not None and not isinstance(rescue, str):
-        raise ValueError(f"the flat backend keys {sorted(flat)} need rescue_backend None or "
-                         f"'ipopt', got {rescue!r}")
-    return PlannerSettings.from_flat(
-        {"backend": backend, **problem, "rescue_backend": rescue, **flat})

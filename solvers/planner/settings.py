@@ -7,43 +7,23 @@ exactly one backend (:class:`~solvers.planner.backends.ipopt.IpoptSettings`,
 :class:`~solvers.planner.backends.scp.SCPSettings`) and, optionally, the IPOPT settings of the
 rescue. Each part validates itself when built (``ValueError`` naming the key and the value).
 
-Runs saved before the settings were split hold one flat node (``backend: lm``,
-``lm_iterations: 10``, ``ipopt_max_iter: 200``, ...) in their ``config.yaml``, and their
-checkpoints pickle the flat settings object: :meth:`PlannerSettings.from_flat` is the one place
-that converts those (the planner's constructor and unpickling both use it).
+Runs saved before the settings were split (flat nodes and pickles) are read by
+:mod:`solvers.planner.legacy`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from solvers.planner.backends import BACKEND_SETTINGS, BACKENDS
 from solvers.planner.backends.ipopt import IpoptSettings
 from solvers.planner.backends.lm import LMSettings
 from solvers.planner.backends.scp import SCPSettings
-from solvers.planner.problem.settings import ProblemSettings, problem_keys
+from solvers.planner.problem.settings import ProblemSettings
 from solvers.planner.validation import set_field
 
 #: The settings of one backend.
 AnyBackendSettings = IpoptSettings | LMSettings | SCPSettings
-
-#: The flat (pre-split) backend keys: flat key -> (backend, key of its settings class).
-FLAT_BACKEND_KEYS: dict[str, tuple[str, str]] = {
-    "lm_iterations": ("lm", "iterations"),
-    "lm_lambda": ("lm", "lambda_"),
-    "lm_adaptive": ("lm", "adaptive"),
-    "lm_lambda_max": ("lm", "lambda_max"),
-    "lm_obstacle_weight": ("lm", "obstacle_weight"),
-    "lm_budget_weight": ("lm", "budget_weight"),
-    "lm_margin": ("lm", "margin"),
-    "lm_damping": ("lm", "damping"),
-    "ipopt_max_iter": ("ipopt", "max_iter"),
-    "ipopt_first_max_iter": ("ipopt", "first_max_iter"),
-    "ipopt_options": ("ipopt", "options"),
-    "scp_max_iterations": ("scp", "max_iterations"),
-    "scp_trust_region": ("scp", "trust_region"),
-}
 
 
 def backend_settings(value: object) -> AnyBackendSettings:
@@ -105,47 +85,3 @@ class PlannerSettings:
     def rescue_backend(self) -> str | None:
         """``"ipopt"`` when plans are rescued, else None (the ``conf/planner`` key)."""
         return None if self.rescue is None else "ipopt"
-
-    @classmethod
-    def from_flat(cls, flat: Mapping[str, object]) -> PlannerSettings:
-        """The settings of a flat, pre-split settings node or object.
-
-        ``flat`` holds the keywords the planner took before its settings were split:
-        ``backend`` (a name), the problem's keys, ``lm_*``, ``ipopt_*`` and ``scp_*`` keys
-        (:data:`FLAT_BACKEND_KEYS`) and ``rescue_backend`` (``None`` or ``"ipopt"``); missing
-        keys take their defaults. Every backend's keys are validated, as they were; the chosen
-        backend's become its settings and the ``ipopt_*`` keys also configure the IPOPT rescue.
-        The other backends' keys are dropped (``lm_margin`` also widened the obstacle selection
-        of IPOPT and SCP, which now add
-        :data:`~solvers.planner.backends.base.SELECTION_SLACK`, its default).
-
-        Raises:
-            ValueError: An unknown key or a bad value (the message names it).
-        """
-        known = {"backend", "rescue_backend", *problem_keys(), *FLAT_BACKEND_KEYS}
-        unknown = sorted(set(flat) - known)
-        if unknown:
-            raise ValueError(f"unknown planner settings {unknown}; known: {sorted(known)}")
-        name = flat.get("backend", "ipopt")
-        if not isinstance(name, str) or name not in BACKENDS:
-            raise ValueError(f"backend must be one of {list(BACKENDS)}, got {name!r}")
-        keywords: dict[str, dict[str, object]] = {backend: {} for backend in BACKENDS}
-        for key, (backend, setting) in FLAT_BACKEND_KEYS.items():
-            if key in flat:
-                keywords[backend][setting] = flat[key]
-        built = {}
-        for backend, kwargs in keywords.items():
-            try:
-                built[backend] = BACKEND_SETTINGS[backend](**kwargs)  # type: ignore[arg-type]
-            except ValueError as error:
-                raise ValueError(f"{backend} settings ({backend}_* keys): {error}") from None
-        problem = ProblemSettings(**{k: flat[k] for k in problem_keys() if k in flat})  # type: ignore[arg-type]
-        rescue = rescue_settings(flat.get("rescue_backend"))
-        return cls(problem, built[name], built["ipopt"] if rescue is not None else None)
-
-    def __setstate__(self, state: dict[str, object]) -> None:
-        """Unpickle; a flat settings object pickled before the split goes through
-        :meth:`from_flat`."""
-        if "problem" not in state:
-            state = dict(PlannerSettings.from_flat(state).__dict__)
-        self.__dict__.update(state)

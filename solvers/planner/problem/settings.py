@@ -1,9 +1,10 @@
 """The planning problem's settings (thesis §3.5.2, Eqs. 3.3-3.7): what every backend solves.
 
-:class:`ProblemSettings` holds the problem's own keys of ``conf/planner/*.yaml`` (the planner's
-constructor takes them as flat keywords); each backend's knobs live in its own settings class
-(:mod:`solvers.planner.backends`). Every value is checked once, when the object is built:
-``ValueError`` names the key and the value.
+:class:`ProblemSettings` is where each of the problem's keys is defined: the planner takes it
+whole (``SafeTrajectoryPlanner(problem=ProblemSettings(...))``), and ``conf/planner/_base.yaml``'s
+``problem:`` node mirrors its fields and defaults (a test checks that they are equal); each
+backend's knobs live in its own settings class (:mod:`solvers.planner.backends`). Every value
+is checked once, when the object is built: ``ValueError`` names the key and the value.
 """
 
 from __future__ import annotations
@@ -64,5 +65,5 @@ class ProblemSettings:
 
 
 def problem_keys() -> tuple[str, ...]:
-    """The problem's keys, in order (the planner's flat keywords and ``conf/planner`` keys)."""
+    """The problem's keys, in order (the ``problem:`` node of ``conf/planner/_base.yaml``)."""
     return tuple(f.name for f in fields(ProblemSettings))

@@ -1,0 +1,162 @@
+"""semdp's files of earlier versions, read in one place: saved run configs and checkpoints.
+
+Only loading calls this module: :func:`semdp.run_config.load_run_config` passes every saved
+``config.yaml`` through :func:`upgrade_run_config`, and
+:func:`semdp.common.checkpoint_files.load_checkpoint_file` unpickles through
+:class:`Unpickler`. The classes that run know nothing of earlier versions: the configs and
+objects they are given are today's.
+
+Run configs (:func:`upgrade_run_config`), in place:
+
+* a ``_target_`` that moved (:data:`RENAMED_TARGETS`) names the class of today;
+* a Safety-Embedded MDP wrapper saved with its planner and follower by name (``planner:
+  lm_adaptive`` with ``planner_kwargs``; ``follower: auto``, ``<robot>`` or
+  ``<robot>_ppo_lag``) gets the ``conf`` nodes that hold them now;
+* a planner node of an earlier form (the flat keys of before the settings were split, the
+  problem's keys beside ``backend``) gets today's form, ``problem:`` / ``backend:`` /
+  ``rescue_backend`` (:func:`solvers.planner.legacy.planner_node`);
+* the filter's ``lidar_bearing_bound: true / false`` (runs recorded before the aliasing bound)
+  reads ``bin`` / ``none`` (:data:`RECORDED_BOUNDS`).
+
+Checkpoints (:class:`Unpickler`): the planner's old pickles (:mod:`solvers.planner.legacy`),
+classes that moved (:data:`RENAMED_TARGETS`), objects pickled before one of their attributes
+existed, which get the value they ran with (:data:`ADDED_ATTRIBUTES`), and the boolean bearing
+bounds. Sub-envs that a rollout helper pickled into the checkpoint (``pickle.loads`` of a blob)
+are read by the same unpickler.
+"""
+
+from __future__ import annotations
+
+import functools
+import io
+import pickle
+from typing import Any
+
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from semdp.configs import compose_node
+from solvers.planner import legacy as planner_legacy
+
+#: ``_target_`` (and pickled class) of earlier versions -> the same object today.
+RENAMED_TARGETS: dict[str, str] = {
+    "semdp.common.lagrange.Lagrange": "semdp.algos.lagrangian.Lagrange",
+    "semdp.common.lagrange.PIDLagrange": "semdp.algos.pid_lagrange.PIDLagrange",
+    "semdp.common.self_paced.SelfPacedThresholds": "semdp.algos.sp_ppo_lag.SelfPacedThresholds",
+    "semdp.embedded.artifacts.after_training": "semdp.reporting.semdp_run.after_training",
+}
+#: The filter's ``lidar_bearing_bound`` as recorded before the aliasing bound -> today's value.
+RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}
+#: Attributes added to a pickled class since: the value an object pickled before ran with.
+ADDED_ATTRIBUTES: dict[str, dict[str, object]] = {
+    "semdp.embedded.shield.SafetyShield": {"fallback": "escape", "kernel": "compiled",
+                                           "_buttons": None},
+    "semdp.embedded.wrapper.SafetyEmbeddedEnv": {"_buttons": None},
+    "semdp.embedded.brake_kernel.ClearanceKernel": {"native": False},
+}
+SEMDP_TARGET = "semdp.embedded.wrapper.SafetyEmbeddedEnv"
+SHIELD_TARGET = "semdp.embedded.shield.SafetyShield"
+
+
+# ---------------------------------------------------------------- run configs
+def _legacy_follower(name: str) -> DictConfig:
+    """A follower saved by name (``point``, ``car_ppo_lag``, ...): the ``follower`` or
+    ``ppo_lag_follower`` node of ``conf/robot/<robot>.yaml`` that holds it now."""
+    robot, _, kind = name.partition("_")
+    key = {"": "follower", "ppo_lag": "ppo_lag_follower"}.get(kind)
+    if key is None:
+        raise ValueError(f"unknown follower {name!r}: <robot> or <robot>_ppo_lag")
+    return compose_node("robot", robot)[key]
+
+
+def _wrapper_by_name(node: DictConfig) -> None:
+    """A SEMDP wrapper's planner and follower saved by name -> their ``conf`` nodes."""
+    planner = node.get("planner")
+    if isinstance(planner, str):
+        composed = OmegaConf.to_container(compose_node("planner", planner))
+        node.planner = {**composed, **(node.get("planner_kwargs") or {})}  # type: ignore[dict-item]
+    follower = node.get("follower")
+    if follower == "auto":
+        node.follower = None
+    elif isinstance(follower, str):
+        node.follower = _legacy_follower(follower)
+    for key in ("planner_kwargs", "_recursive_"):
+        node.pop(key, None)
+
+
+def upgrade_node(node: Any) -> None:
+    """:func:`upgrade_run_config` of one node and everything below it, in place."""
+    if isinstance(node, DictConfig):
+        target = node.get("_target_") if "_target_" in node else None
+        if isinstance(target, str) and target in RENAMED_TARGETS:
+            node._target_ = target = RENAMED_TARGETS[target]
+        if target == SEMDP_TARGET:
+            _wrapper_by_name(node)
+        if target == planner_legacy.PLANNER_TARGET and planner_legacy.is_old_planner_node(node):
+            old = OmegaConf.to_container(node, resolve=False)
+            for key in list(node):
+                node.pop(key)
+            node.merge_with(planner_legacy.planner_node(old))  # type: ignore[arg-type]
+        if target == SHIELD_TARGET and node.get("lidar_bearing_bound") in RECORDED_BOUNDS:
+            node.lidar_bearing_bound = RECORDED_BOUNDS[node.lidar_bearing_bound]
+        for key in node:
+            if not (OmegaConf.is_missing(node, key) or OmegaConf.is_interpolation(node, key)):
+                upgrade_node(node[key])
+    elif isinstance(node, ListConfig):
+        for item in node:
+            upgrade_node(item)
+
+
+def upgrade_run_config(cfg: DictConfig) -> DictConfig:
+    """A saved run config in today's form, in place (see the module docstring); returned.
+
+    Raises:
+        ValueError: a planner or follower saved by a name that no ``conf`` option holds.
+    """
+    upgrade_node(cfg)
+    return cfg
+
+
+# ---------------------------------------------------------------- checkpoints
+def _shield_state(state: dict[str, Any]) -> dict[str, Any]:
+    bound = state.get("lidar_bearing_bound")
+    if bound in RECORDED_BOUNDS:
+        state["lidar_bearing_bound"] = RECORDED_BOUNDS[bound]  # type: ignore[index]
+    return state
+
+
+@functools.cache
+def _with_added(path: str, cls: type) -> type:
+    added = ADDED_ATTRIBUTES[path]
+
+    def upgrade(state: dict[str, Any]) -> dict[str, Any]:
+        state = {**added, **state}
+        return _shield_state(state) if path == SHIELD_TARGET else state
+
+    return planner_legacy.upgrading(cls, upgrade)
+
+
+class Unpickler(pickle.Unpickler):
+    """An unpickler that reads checkpoints of earlier versions (see the module docstring)."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if (module, name) in (("pickle", "loads"), ("_pickle", "loads")):
+            return loads  # a blob pickled inside the checkpoint: read it the same way
+        found = planner_legacy.find_class(module, name)
+        if found is not None:
+            return found
+        path = RENAMED_TARGETS.get(f"{module}.{name}", f"{module}.{name}")
+        module, _, name = path.rpartition(".")
+        cls = super().find_class(module, name)
+        return _with_added(path, cls) if path in ADDED_ATTRIBUTES else cls
+
+
+def loads(data: bytes) -> Any:
+    """``pickle.loads`` through :class:`Unpickler`."""
+    return Unpickler(io.BytesIO(data)).load()
+
+
+def load(file: Any) -> Any:
+    """``pickle.load`` through :class:`Unpickler` (with :class:`Unpickler`, what
+    ``torch.load(..., pickle_module=semdp.legacy)`` needs)."""
+    return Unpickler(file).load()
+
