@@ -95,7 +95,7 @@ def _same_plans(plain: SafeTrajectoryPlanner, fast: SafeTrajectoryPlanner) -> No
 def test_the_lm_planner_plans_the_same_with_native_kernels(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv("SOLVERS_NATIVE_CACHE", str(tmp_path))
     monkeypatch.setattr(lm_module, "native_banded_kernel", lambda *args: None)  # loop in Python
-    plain = SafeTrajectoryPlanner(backend=LMSettings(adaptive=True))
+    plain = SafeTrajectoryPlanner(backend=LMSettings(adaptive=True, native=False))
     fast = SafeTrajectoryPlanner(backend=LMSettings(adaptive=True, native=True))
     _same_plans(plain, fast)
     slots = set(fast.solver.kernels)
@@ -108,7 +108,7 @@ def test_the_lm_planner_plans_the_same_with_native_kernels(tmp_path, monkeypatch
 def test_the_native_lm_iteration_plans_the_python_loops_plans_bit_for_bit(
         tmp_path, monkeypatch, adaptive: bool) -> None:
     monkeypatch.setenv("SOLVERS_NATIVE_CACHE", str(tmp_path))
-    plain = SafeTrajectoryPlanner(backend=LMSettings(adaptive=adaptive))
+    plain = SafeTrajectoryPlanner(backend=LMSettings(adaptive=adaptive, native=False))
     fast = SafeTrajectoryPlanner(backend=LMSettings(adaptive=adaptive, native=True))
     _same_plans(plain, fast)
     assert fast.solver.kernels and all(

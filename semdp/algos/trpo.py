@@ -60,9 +60,10 @@ class TRPO(OnPolicyAlgorithm):
         cg_damping: Tikhonov damping added to the Fisher-vector product.
         backtrack_iters: maximum line-search steps.
         backtrack_coef: step shrink factor per line-search step.
+        critic_lr: Adam learning rate of both critics (OmniSafe's TRPO: 1e-3).
         **kwargs: forwarded to :class:`~semdp.algos.on_policy.OnPolicyAlgorithm` (critic settings,
             ``gradients="autograd"`` for the double-backward Fisher-vector product;
-            ``critic_lr`` defaults to 1e-3 and ``critic_minibatches`` to the batch size / 128).
+            ``critic_minibatches`` defaults to the batch size / 128).
     """
 
     extra_columns = ("loss_pi", *OnPolicyAlgorithm.base_columns, "step_frac")
@@ -78,11 +79,11 @@ class TRPO(OnPolicyAlgorithm):
         cg_damping: float = 0.1,
         backtrack_iters: int = 15,
         backtrack_coef: float = 0.8,
+        critic_lr: float = 1e-3,
         **kwargs: Any,
     ) -> None:
-        kwargs.setdefault("critic_lr", 1e-3)
         kwargs.setdefault("critic_minibatches", max(1, steps_per_epoch // 128))
-        super().__init__(envs, eval_envs, seed, steps_per_epoch, **kwargs)
+        super().__init__(envs, eval_envs, seed, steps_per_epoch, critic_lr=critic_lr, **kwargs)
         if target_kl <= 0:
             raise ValueError(f"target_kl must be > 0, got {target_kl}")
         if cg_iters < 1 or backtrack_iters < 1:

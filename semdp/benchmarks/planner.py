@@ -59,11 +59,12 @@ def plans_sha256(results: list) -> str:
 #: The backend settings of each variant (the problem's settings are the defaults).
 VARIANTS: dict[str, IpoptSettings | LMSettings | SCPSettings] = {
     "ipopt": IpoptSettings(),
-    "lm": LMSettings(iterations=10, adaptive=False),
-    "lm_adaptive": LMSettings(iterations=10, adaptive=True),
+    "lm": LMSettings(iterations=10, adaptive=False, native=False),
+    "lm_adaptive": LMSettings(iterations=10, adaptive=True, native=False),
     "scp": SCPSettings(),
-    # the same LM as native code (solvers/native.py, backends/native_lm.py): same plans, faster;
-    # not in the default list (backends=[lm,lm_native,...] compares them)
+    # the same LM as native code (solvers/native.py, backends/native_lm.py; LMSettings' and the
+    # configs' default): same plans, faster; not in the default list (backends=[lm,lm_native,...]
+    # compares them)
     "lm_native": LMSettings(iterations=10, adaptive=False, native=True),
     "lm_adaptive_native": LMSettings(iterations=10, adaptive=True, native=True),
 }

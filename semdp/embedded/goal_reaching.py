@@ -47,7 +47,8 @@ class GoalReachingEnv(gym.Wrapper):
             the "SAC + PPO Lag" ablation is trained with PPO-Lag in the obstacle env.
         include_lidar: append the obstacle LiDAR channels to the observation (same ablation).
         reward_scale: multiplies Eq. 3.9 (the per-step distance decrease is ~0.01 m, too small
-            next to SAC's entropy bonus; the optimum is unchanged).
+            next to SAC's entropy bonus; the optimum is unchanged): 10, the follower's training
+            setting (``conf/env/follower.yaml``).
     """
 
     def __init__(
@@ -56,7 +57,7 @@ class GoalReachingEnv(gym.Wrapper):
         d_min: float = 0.2,
         success_radius: float = 0.05,
         episode_steps: int = 200,
-        reward_scale: float = 1.0,
+        reward_scale: float = 10.0,
         keep_cost: bool = False,
         include_lidar: bool = False,
     ) -> None:

@@ -73,11 +73,11 @@ class SafetyShield(CostRegions):
             reconstruction as it is).
         fallback: when neither the action nor braking is certified: ``"escape"`` (the best
             one-step clearance among braking and the escape actions) or ``"brake"``.
-        kernel: how :meth:`clearance` is evaluated (:data:`KERNELS`): ``"compiled"`` (the
+        kernel: how :meth:`clearance` is evaluated (:data:`KERNELS`): ``"native"`` (the
             default: the braking manoeuvre as one CasADi function,
-            :mod:`semdp.embedded.brake_kernel`, equal to the plain path bit for bit),
-            ``"native"`` (that function as compiled C, equal too) or ``"python"`` (the plain
-            path, the reference).
+            :mod:`semdp.embedded.brake_kernel`, compiled to C, equal to the plain path bit for
+            bit), ``"compiled"`` (that function in CasADi's virtual machine, equal too) or
+            ``"python"`` (the plain path, the reference).
     """
 
     #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
@@ -88,7 +88,7 @@ class SafetyShield(CostRegions):
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
                  lidar_bearing_bound: str = "aliasing", fallback: str = "escape",
-                 kernel: str = "compiled") -> None:
+                 kernel: str = "native") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in PERCEPTION_MODES:

@@ -66,11 +66,11 @@ class LMSettings:
         margin: Extra clearance (m) in the hinge, so penalty solutions usually pass the exact
             certificate (the public code adds 0.01 m).
         damping: Initial Marquardt damping.
-        native: Run the kernels and the LM iteration as native code (C compiled once per
-            machine and cached: :mod:`solvers.native`,
+        native: Run the kernels and the LM iteration as native code (the default: C compiled
+            once per machine and cached: :mod:`solvers.native`,
             :mod:`solvers.planner.backends.native_lm`); the same floats as CasADi's virtual
-            machine and the Python iteration, about 2x faster plans; the virtual machine
-            where no C compiler is found).
+            machine and the Python iteration (``False``), about 2x faster plans; the virtual
+            machine where no C compiler is found.
     """
 
     name: ClassVar[str] = "lm"
@@ -83,7 +83,7 @@ class LMSettings:
     budget_weight: float = 100.0
     margin: float = 0.02
     damping: float = 1e-4
-    native: bool = field(default=False, compare=False)  # how, not what: same floats
+    native: bool = field(default=True, compare=False)  # how, not what: same floats
 
     def __post_init__(self) -> None:
         for name in ("lambda_", "lambda_max", "obstacle_weight", "budget_weight", "damping"):
