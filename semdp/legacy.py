@@ -35,7 +35,6 @@ from typing import Any
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from semdp.configs import compose_node
-from solvers.planner import legacy as planner_legacy
 
 #: ``_target_`` (and pickled class) of earlier versions -> the same object today.
 RENAMED_TARGETS: dict[str, str] = {
@@ -83,6 +82,14 @@ def _wrapper_by_name(node: DictConfig) -> None:
         node.pop(key, None)
 
 
+def _planner_legacy() -> Any:
+    """The planner's compatibility module, imported on first use: CasADi and the planner load
+    only with a run or checkpoint that holds a planner."""
+    from solvers.planner import legacy
+
+    return legacy
+
+
 def upgrade_node(node: Any) -> None:
     """:func:`upgrade_run_config` of one node and everything below it, in place."""
     if isinstance(node, DictConfig):
@@ -91,11 +98,13 @@ def upgrade_node(node: Any) -> None:
             node._target_ = target = RENAMED_TARGETS[target]
         if target == SEMDP_TARGET:
             _wrapper_by_name(node)
-        if target == planner_legacy.PLANNER_TARGET and planner_legacy.is_old_planner_node(node):
+        if (isinstance(target, str) and target.startswith("solvers.planner.")
+                and target == _planner_legacy().PLANNER_TARGET
+                and _planner_legacy().is_old_planner_node(node)):
             old = OmegaConf.to_container(node, resolve=False)
             for key in list(node):
                 node.pop(key)
-            node.merge_with(planner_legacy.planner_node(old))  # type: ignore[arg-type]
+            node.merge_with(_planner_legacy().planner_node(old))  # type: ignore[arg-type]
         if target == SHIELD_TARGET and node.get("lidar_bearing_bound") in RECORDED_BOUNDS:
             node.lidar_bearing_bound = RECORDED_BOUNDS[node.lidar_bearing_bound]
         for key in node:
@@ -132,7 +141,7 @@ def _with_added(path: str, cls: type) -> type:
         state = {**added, **state}
         return _shield_state(state) if path == SHIELD_TARGET else state
 
-    return planner_legacy.upgrading(cls, upgrade)
+    return _planner_legacy().upgrading(cls, upgrade)
 
 
 class Unpickler(pickle.Unpickler):
@@ -141,7 +150,8 @@ class Unpickler(pickle.Unpickler):
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) in (("pickle", "loads"), ("_pickle", "loads")):
             return loads  # a blob pickled inside the checkpoint: read it the same way
-        found = planner_legacy.find_class(module, name)
+        found = (_planner_legacy().find_class(module, name)
+                 if module.startswith("solvers.planner") else None)
         if found is not None:
             return found
         path = RENAMED_TARGETS.get(f"{module}.{name}", f"{module}.{name}")
