@@ -25,6 +25,8 @@ from omegaconf import OmegaConf
 
 from semdp.configs import compose_config
 from semdp.reporting import results_page as rp
+from semdp.reporting.results_claims import _config
+from semdp.reporting.results_sources import Sources, steps_text
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "outputs" / "reference"
@@ -49,7 +51,7 @@ def _ours_evals() -> list[dict]:
 
 
 def _baseline_cost_limit() -> str:
-    return rp._config(rp.Sources(), [rp.BASELINES_FOLDER, "cost_limit"])
+    return _config(Sources(), [rp.BASELINES_FOLDER, "cost_limit"])
 
 
 def _thesis_steps() -> int:
@@ -63,7 +65,7 @@ def _citation() -> dict:
 #: Each phrase the README quotes, built from the file it comes from.
 FACTS: dict[str, Callable[[], str]] = {
     "main job's env steps": lambda: (
-        f"for {rp.steps_text(_main_job()['total_steps'] * _main_job()['env']['wrapper']['k'])} "
+        f"for {steps_text(_main_job()['total_steps'] * _main_job()['env']['wrapper']['k'])} "
         "env steps"),
     "main job's evaluation episodes": lambda: (
         f"evaluates the policy over {_main_job()['final_eval_episodes']} episodes"),
@@ -76,7 +78,7 @@ FACTS: dict[str, Callable[[], str]] = {
         f"{_ours_evals()[0]['eval']['episodes']} episodes each, mean ± standard error over "
         f"{len({e['seed'] for e in _ours_evals()})} seeds, cost limit {_baseline_cost_limit()})"),
     "results: thesis' steps": lambda: (
-        f"the thesis trained for {rp.steps_text(_thesis_steps())} env steps"),
+        f"the thesis trained for {steps_text(_thesis_steps())} env steps"),
     "Python version": lambda: (
         "Python " + tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
         ["requires-python"].removeprefix(">=") + " or later"),

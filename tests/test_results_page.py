@@ -24,6 +24,8 @@ import pytest
 import yaml
 
 from semdp.reporting import results_page as rp
+from semdp.reporting.results_claims import claims, fill
+from semdp.reporting.results_sources import Sources, seeds_text, steps_text, table_cell
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "outputs" / "reference"
@@ -32,7 +34,7 @@ POINT_S0 = "semdp_push1/runs/ours/point_push1_s0/eval.json"
 
 @pytest.fixture(scope="module")
 def page() -> str:
-    return rp.results_page(rp.Sources())
+    return rp.results_page(Sources())
 
 
 def test_committed_page_is_what_the_command_builds(page: str) -> None:
@@ -42,7 +44,7 @@ def test_committed_page_is_what_the_command_builds(page: str) -> None:
 
 def test_committed_readme_table_is_what_the_command_builds() -> None:
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert rp.with_readme_table(readme, rp.readme_table(rp.Sources())) == readme, (
+    assert rp.with_readme_table(readme, rp.readme_table(Sources())) == readme, (
         f"README.md's results table is stale: run {rp.COMMAND}")
 
 
@@ -50,17 +52,17 @@ def test_check_mode_passes_on_the_committed_files(capsys: pytest.CaptureFixture[
     assert rp.main(["--check"]) == 0, capsys.readouterr().out
 
 
-def _planted(relative: str, old: str, new: str) -> rp.Sources:
+def _planted(relative: str, old: str, new: str) -> Sources:
     text = (REFERENCE / relative).read_text(encoding="utf-8")
     assert text.count(old) >= 1, (relative, old)
-    return rp.Sources(overrides={relative: text.replace(old, new, 1)})
+    return Sources(overrides={relative: text.replace(old, new, 1)})
 
 
 def test_a_planted_wrong_return_in_an_eval_json_changes_the_page(page: str) -> None:
     record = json.loads((REFERENCE / POINT_S0).read_text())
     recorded = record["eval"]["return_mean"]
     record["eval"]["return_mean"] = recorded + 1.0
-    planted = rp.results_page(rp.Sources(overrides={POINT_S0: json.dumps(record)}))
+    planted = rp.results_page(Sources(overrides={POINT_S0: json.dumps(record)}))
     assert planted != page
     assert f"({recorded:.2f} / " in page
     assert f"({recorded + 1.0:.2f} / " in planted  # the per-seed cell of the headline
@@ -68,7 +70,7 @@ def test_a_planted_wrong_return_in_an_eval_json_changes_the_page(page: str) -> N
 
 def test_a_planted_wrong_cell_in_a_table_md_changes_the_claim(page: str) -> None:
     section = "sp_safety_gym/table.md"
-    cell = rp.table_cell((REFERENCE / section).read_text(), "Training episodes, last",
+    cell = table_cell((REFERENCE / section).read_text(), "Training episodes, last",
                          "PointGoal1::cost", "PPO-Lag")
     planted = rp.results_page(_planted(section, f"| {cell} |", "| 99.99 ± 0.01 |"))
     assert f"{cell} on PointGoal1" in page
@@ -172,23 +174,23 @@ def test_every_folder_is_in_the_index_once(page: str) -> None:
 )
 def test_a_placeholder_that_does_not_resolve_stops_the_build(template: str, fault: str) -> None:
     with pytest.raises(ValueError, match=fault):
-        rp.fill(template, rp.Sources())
+        fill(template, Sources())
 
 
 def test_a_claim_on_a_folder_that_is_not_committed_stops_the_build() -> None:
-    claims = yaml.safe_load((REFERENCE / "claims.yaml").read_text())
-    claims[0]["folders"] = ["no_such_folder"]
+    listed = yaml.safe_load((REFERENCE / "claims.yaml").read_text())
+    listed[0]["folders"] = ["no_such_folder"]
     with pytest.raises(ValueError, match="no_such_folder"):
-        rp.claims(rp.Sources(overrides={"claims.yaml": yaml.safe_dump(claims)}))
+        claims(Sources(overrides={"claims.yaml": yaml.safe_dump(listed)}))
 
 
 def test_formatting_oracles() -> None:
-    assert rp.steps_text(2_000_000) == "2 × 10⁶"
-    assert rp.steps_text(1_200_000) == "1.2 × 10⁶"
-    assert rp.steps_text(10_000_000) == "10⁷"
-    assert rp.steps_text(300_000) == "3 × 10⁵"
-    assert rp.seeds_text([2, 0, 1]) == "3 seeds (0-2)"
-    assert rp.seeds_text([0]) == "1 seed (0)"
-    assert rp.seeds_text([0, 2]) == "2 seeds (0, 2)"
+    assert steps_text(2_000_000) == "2 × 10⁶"
+    assert steps_text(1_200_000) == "1.2 × 10⁶"
+    assert steps_text(10_000_000) == "10⁷"
+    assert steps_text(300_000) == "3 × 10⁵"
+    assert seeds_text([2, 0, 1]) == "3 seeds (0-2)"
+    assert seeds_text([0]) == "1 seed (0)"
+    assert seeds_text([0, 2]) == "2 seeds (0, 2)"
     text = "# T\n\n| env | metric | A |\n|---|---|---|\n| X 2 m/s | reward | 1.00 ± 0.50 |\n"
-    assert rp.table_cell(text, "", "X 2 m/s::reward", "A") == "1.00 ± 0.50"
+    assert table_cell(text, "", "X 2 m/s::reward", "A") == "1.00 ± 0.50"

@@ -20,8 +20,7 @@ Three parts, each read from ``outputs/reference/`` (through
 
 The README's results table (between ``<!-- results-table:start -->`` and ``:end -->``) is the
 headline's short form and is rewritten by the same command. ``tests/test_results_page.py``
-checks that the committed page and table are what this module builds. The names of the parts'
-modules stay importable from here.
+checks that the committed page and table are what this module builds.
 """
 
 from __future__ import annotations
@@ -31,43 +30,17 @@ import sys
 from collections.abc import Mapping
 
 from semdp.paths import REPO_ROOT
-from semdp.reporting.results_claims import (
-    NUMBER,
-    PLACEHOLDER,
-    RESOLVERS,
-    VERDICTS,
-    _config,
-    claims,
-    fill,
-    listed_claims,
-)
+from semdp.reporting.results_claims import claims
 from semdp.reporting.results_index import folder_index
 from semdp.reporting.results_sources import (
-    REFERENCE,
-    Evaluated,
     Sources,
     epochs_with_cost,
     evaluated,
     grouped,
-    kept_runs,
-    markdown_tables,
     mean_se,
-    number_text,
-    run_steps,
     seeds_text,
     steps_text,
-    table_cell,
-    zoo_entries,
 )
-
-#: Importable from here as before the page's parts moved to their own modules.
-__all__ = [
-    "NUMBER", "PLACEHOLDER", "REFERENCE", "RESOLVERS", "VERDICTS", "Evaluated", "Sources",
-    "_config", "claims", "epochs_with_cost", "evaluated", "fill", "folder_index", "grouped",
-    "headline", "kept_runs", "listed_claims", "main", "markdown_tables", "mean_se",
-    "number_text", "readme_table", "results_page", "run_steps", "seeds_text", "steps_text",
-    "table_cell", "with_readme_table", "zoo_entries",
-]
 
 PACKAGE_ROOT = REPO_ROOT
 PAGE = PACKAGE_ROOT / "docs" / "results.md"
