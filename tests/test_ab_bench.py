@@ -50,7 +50,8 @@ def test_the_slower_side_is_reported_slower(tmp_path: Path,
     # the rounding leaves around the printed ones (a ~0.05 s median carries a ~1 % rounding).
     half = 0.0005
     base_median, new_median = float(rows["base"][0]), float(rows["new"][0])
-    low, high = (base_median - half) / (new_median + half), (base_median + half) / (new_median - half)
+    low = (base_median - half) / (new_median + half)
+    high = (base_median + half) / (new_median - half)
     assert low - half <= ratio <= high + half
     assert "(new faster)" in out
 

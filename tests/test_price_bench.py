@@ -33,6 +33,7 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
     assert (wrapper.perception, wrapper.shield.perception) == ("lidar", "lidar")
     assert wrapper.shield.lidar_bearing_bound == "aliasing"
     assert wrapper.planner.problem.clearance == 0.5
+    no_gremlins = ["hazards", "vases", "pillars", "buttons"]
     changed = {
         "planner_gt": {"env.eval_wrapper.perception": "gt"},
         "filter_gt": {"env.eval_wrapper.shield.perception": "gt"},
@@ -44,6 +45,9 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
                    "env.eval_wrapper.shield.perception": "gt"},
         "clearance_0.3": {"env.eval_wrapper.planner.problem.clearance": 0.3},
         "sampled": {},  # an evaluation setting, not a config key
+        "planner_no_gremlins": {"env.eval_wrapper.obstacle_kinds": no_gremlins},
+        "no_gremlins": {"env.eval_wrapper.obstacle_kinds": no_gremlins,
+                        "env.eval_wrapper.shield.kinds": no_gremlins},
     }
     assert set(changed) | {"configured"} == set(FACTORS)
     for factor, keys in changed.items():
@@ -52,7 +56,11 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
             assert OmegaConf.select(cfg, key) == value, (factor, key)
         # everything else as saved: undo the named keys and compare the whole config
         for key in keys:
-            OmegaConf.update(cfg, key, OmegaConf.select(base, key), merge=False)
+            if OmegaConf.select(base, key, default="absent") == "absent":  # added by the factor
+                parent, _, leaf = key.rpartition(".")
+                OmegaConf.select(cfg, parent).pop(leaf)
+            else:
+                OmegaConf.update(cfg, key, OmegaConf.select(base, key), merge=False)
         assert cfg == base, factor
 
 

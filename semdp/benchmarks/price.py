@@ -22,6 +22,10 @@ factor                    what changes (``semdp-eval`` arguments)
 ``gt_all``                planner and filter both from the true obstacles
 ``sampled``               the stochastic policy's sampled actions instead of its mean
 ``clearance_0.3``         the planner's eps' 0.3 m instead of the configured (= thesis) 0.5 m
+``planner_no_gremlins``   the planner ignores the gremlins; the filter still keeps the robot out
+                          of their orbit discs (the room the planner's discs take)
+``no_gremlins``           planner and filter ignore the gremlins (cost allowed: the room the
+                          orbit discs take, the ceiling of any finer gremlin model)
 ========================  ==================================================================
 
     semdp-bench price                                   # Push1's 9 zoo policies x 8 factors
@@ -59,8 +63,11 @@ from typing import Any
 import numpy as np
 
 from semdp.benchmarks.arguments import BenchArgumentError, as_choices, as_int, as_list, parse_args
+from semdp.embedded.perception import OBSTACLE_KINDS
 from semdp.paths import REPO_ROOT
 
+#: The obstacle kinds less the gremlins (``semdp-eval`` list syntax).
+_NO_GREMLINS = "[" + ",".join(k for k in OBSTACLE_KINDS if k != "gremlins") + "]"
 #: Factor name -> (``semdp-eval`` arguments, what it changes).
 FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
     "configured": ((), "as configured: the zoo's protocol"),
@@ -77,6 +84,11 @@ FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
                "planner and filter from true obstacles"),
     "sampled": (("actions=sampled",), "sampled instead of mean actions"),
     "clearance_0.3": (("clearance=0.3",), "planner eps' 0.3 m instead of 0.5 m"),
+    "planner_no_gremlins": ((f"+env.eval_wrapper.obstacle_kinds={_NO_GREMLINS}",),
+                            "planner ignores the gremlins (the filter still avoids them)"),
+    "no_gremlins": ((f"+env.eval_wrapper.obstacle_kinds={_NO_GREMLINS}",
+                     f"+env.eval_wrapper.shield.kinds={_NO_GREMLINS}"),
+                    "planner and filter ignore the gremlins"),
 }
 ROBOTS = ("point", "car", "mass")
 _BUTTON1_WHOLE_BIN = ("outputs/reference/archive/semdp_button1_whole_bin/runs/semdp_collect_v4/"
