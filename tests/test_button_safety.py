@@ -329,25 +329,54 @@ def test_a_point_between_two_buttons_leaves_the_one_it_pressed(command: list[flo
     assert presses >= 1 and shield.stats.escaped > 0
     assert cost == 0.0
 
+CAR_BETWEEN_BUTTON_AND_HAZARD = {
+    "agent": (-0.67559, 0.77313), "agent_yaw": 3.05223,
+    "buttons": [(-0.43267, 0.62889), (-0.59541, 1.28633), (-1.05969, 1.16064), (1.2, -1.2)],
+    "hazards": [(-1.22655, 0.77069), (1.5, 1.5), (1.5, 0.0), (0.0, -1.5)], "gremlins": []}
 
-def _holds_by_hand(model: object, state: object, options: list[np.ndarray],
-                   regions: np.ndarray) -> tuple[list[float], list[float]]:
-    """Each option held for the exit's steps from ``state`` by the robot model, disc gaps to
-    ``regions`` rows ``[x, y, R]``: (the smallest gap to row 1 over the hold: its entry, the
-    largest gap to row 0: how far out of it the hold gets)."""
+
+@pytest.mark.parametrize("command", [[-0.95, -0.93], [0.0, 0.0], [0.95, 0.93]])
+def test_a_car_that_pressed_a_button_with_its_rear_leaves_it(command: list[float]) -> None:
+    """A Car touching the goal button with its rear, a hazard 0.55 m ahead (0.3 m beyond the
+    button's region), other buttons 0.5 m to its side: the pose of a trained CarButton1 run's
+    epoch-51 episode at its press (outputs/reference/semdp_button1/traces). Commanded back into
+    the button, to stand still or at the hazard: no wrong-button or hazard cost. Escapes that
+    held each option for the whole horizon found every way out either back on the button or
+    into the hazard's region, alternated full forward and full reverse in place and touched the
+    button after the grace period: 48 cost steps under each command (checked with that rule
+    patched in), as the run did."""
+    env = ShieldedEnv(gym.make("sims/SafetyCarButton1-v0"), SafetyShield(perception="lidar"))
+    env.reset(seed=SEED_GOAL_AHEAD, options={"layout": CAR_BETWEEN_BUTTON_AND_HAZARD})
+    assert env.unwrapped.goal_button == 0
+    cost = presses = 0.0
+    for _ in range(60):
+        _, _, _, _, info = env.step(np.array(command))
+        cost += info["cost"]
+        presses += info["goal_met"]
+    assert presses >= 1 and env.shield.stats.escaped > 0
+    assert cost == 0.0
+
+
+def _plans_by_hand(model: object, state: object, options: list[np.ndarray],
+                   regions: np.ndarray) -> dict[tuple[int, int], tuple[float, float]]:
+    """Each exit plan from ``state`` by the robot model (option ``i`` held for ``hold`` steps,
+    then braking, over the exit's steps), disc gaps to ``regions`` rows ``[x, y, R]``:
+    ``(i, hold) -> (the smallest gap to row 1: its entry, the largest gap to row 0: how far
+    out of it the plan gets)``."""
     from semdp.embedded.exit_planning import EXIT_STEPS
 
-    entries, depths = [], []
-    for action in options:
-        s, points = state, []
-        for _ in range(EXIT_STEPS):
-            s = model.step(s, action)  # type: ignore[attr-defined]
-            points.append((s.x, s.y))
-        gaps = np.linalg.norm(np.array(points)[:, None] - regions[None, :, :2], axis=-1)
-        gaps -= regions[:, 2]
-        entries.append(float(gaps[:, 1].min()))
-        depths.append(float(gaps[:, 0].max()))
-    return entries, depths
+    plans = {}
+    for i, action in enumerate(options):
+        for hold in range(1, EXIT_STEPS + 1):
+            s, points = state, []
+            for t in range(EXIT_STEPS):
+                a = action if t < hold else model.backup(s)  # type: ignore[attr-defined]
+                s = model.step(s, a)  # type: ignore[attr-defined]
+                points.append((s.x, s.y))
+            gaps = np.linalg.norm(np.array(points)[:, None] - regions[None, :, :2], axis=-1)
+            gaps -= regions[:, 2]
+            plans[i, hold] = (float(gaps[:, 1].min()), float(gaps[:, 0].max()))
+    return plans
 
 
 def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
@@ -364,14 +393,15 @@ def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
     contact, orbit = np.array([True, False]), np.array([True, False])
     outside = np.array([False, True])
     options = [model.backup(state), *model.escapes]
-    entries, depths = _holds_by_hand(model, state, options, regions)
-    entries_arr = np.array(entries)
+    plans = _plans_by_hand(model, state, options, regions)
+    entries = np.array([entry for entry, _ in plans.values()])
+    depths = np.array([depth for _, depth in plans.values()])
     shield = SafetyShield(margin=0.05, perception="gt")
-    assert (entries_arr < -shield.margin).all()
+    assert (entries < -shield.margin).all()
     choice = exit_option(model, state, options, regions, contact, orbit, outside,
                          shield.margin)
-    assert entries[choice] == entries_arr.max()
-    assert entries_arr[int(np.argmax(depths))] < entries_arr.max() - 0.09  # what depth chose
+    assert plans[choice][0] == pytest.approx(entries.max(), abs=1e-12)
+    assert entries[int(np.argmax(depths))] < entries.max() - 0.09  # what depth chose
 
 
 def test_a_robot_barely_inside_a_region_does_not_creep_into_another() -> None:
@@ -389,14 +419,14 @@ def test_a_robot_barely_inside_a_region_does_not_creep_into_another() -> None:
     contact, orbit = np.array([False, True]), np.array([False, False])
     outside = np.array([False, True])
     options = [model.backup(state), *model.escapes]
-    entries, depths = _holds_by_hand(model, state, options, regions)
+    plans = _plans_by_hand(model, state, options, regions)
     shield = SafetyShield(margin=0.05, perception="gt")
-    creeping = [i for i, e in enumerate(entries) if -shield.margin <= e < 0.0]
-    assert creeping and max(depths[i] for i in creeping) > max(
-        d for d, e in zip(depths, entries, strict=True) if e >= 0.0)  # what creeping gains
+    creeping = [depth for entry, depth in plans.values() if -shield.margin <= entry < 0.0]
+    assert creeping and max(creeping) > max(
+        depth for entry, depth in plans.values() if entry >= 0.0)  # what creeping gains
     choice = exit_option(model, state, options, regions, contact, orbit, outside,
                          shield.margin)
-    assert entries[choice] >= 0.0
+    assert plans[choice][0] >= 0.0
 
 
 # ------------------------------------------------------------------ regressions from the bench

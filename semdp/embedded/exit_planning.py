@@ -4,20 +4,28 @@ escape of :class:`~semdp.embedded.shield.SafetyShield`).
 **Inside a contact region** (the Button tasks' grace period: the robot starts it touching the
 button it just pressed, which is a wrong button once the goal moves; a push that left it near a
 pillar) one step then braking barely moves a robot at rest, so the escape cannot tell a way out
-from a turn on the spot. There the escape holds each option for :data:`EXIT_STEPS` steps and
-takes the one that gets farthest out of the static regions it is in (a button, not a gremlin's
-orbit disc, which it may be deep inside), then out of all, with gaps measured from the robot's
-outline at its predicted heading rather than from a disc of its extent, among the options that
+from a turn on the spot. There the escape plans :data:`EXIT_STEPS` steps ahead, each option
+held for 1 to :data:`EXIT_STEPS` steps and then braking (an :class:`ExitPlan`), and takes the
+plan that gets farthest out of the static regions it is in (a button, not a gremlin's orbit
+disc, which it may be deep inside), then out of all, with gaps measured from the robot's
+outline at its predicted heading rather than from a disc of its extent, among the plans that
 enter no other region by more than the margin, else those that enter least
 (:func:`exit_option`, with the trained runs' episodes that led to each part): with
 goal-seeking subgoals the Point's nose, swinging back into the button as the robot turned away,
 touched it after the grace period in 1 of 60 episodes on Button1 before the hold and the
-outline.
+outline. Plans that stop short of the horizon are what a robot between two regions needs: a
+Car that had pressed a button with its rear, a hazard 0.3 m ahead of the button's region, found
+every whole-horizon hold either back on the button or into the hazard's region; re-ranked every
+step, full forward and full reverse alternated in place until the grace period ended
+(``cost_buttons`` after it, a trained CarButton1 run's epoch 51), while forward for a few steps
+then braking leaves the button and stops short of the hazard, and one step later the same plan,
+a step shorter, still ranks first.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,15 +38,24 @@ from solvers.planner.geometry import point_distances
 EXIT_STEPS = 10
 
 
+class ExitPlan(NamedTuple):
+    """Option ``option`` (an index into the escape's options) held for ``hold`` steps, then
+    braking until :data:`EXIT_STEPS` steps have passed."""
+
+    option: int
+    hold: int
+
+
 def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
                 regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray,
-                outside: np.ndarray, margin: float) -> int:
+                outside: np.ndarray, margin: float) -> ExitPlan:
     """Inside a region (a button just pressed, an orbit disc, a LiDAR region lit around the
-    robot): the option that, held for :data:`EXIT_STEPS` steps, gets farthest out of the
-    static regions it is in (every kind but a gremlin's orbit disc), then farthest out of
-    all the regions it is in, at the best step of its hold; among the options whose hold
-    enters no region the robot is outside of (by more than ``margin`` when it is that deep in
-    a static region) if there are any, else among those that enter least.
+    robot): the plan (an option held for 1 to :data:`EXIT_STEPS` steps, then braking) that
+    gets farthest out of the static regions it is in (every kind but a gremlin's orbit disc),
+    then farthest out of all the regions it is in, at the best step of its :data:`EXIT_STEPS`;
+    among the plans that enter no region the robot is outside of (by more than ``margin`` when
+    it is that deep in a static region) if there are any, else among those that enter least.
+    The escape applies the plan's option now and plans again at the next step.
 
     * Static regions first: a static region the robot is in is a cost at hand (a button
       whose grace period is running out); an orbit disc it is in is a cost only if the
@@ -71,12 +88,8 @@ def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
             outline, whether it is a gremlin's orbit disc, whether the robot is outside it now.
         margin: the filter's margin (m).
     """
-    poses = np.empty((len(options), EXIT_STEPS, 3))
-    for i, a in enumerate(options):
-        s = state
-        for t in range(EXIT_STEPS):
-            s = model.step(s, a)
-            poses[i, t] = (s.x, s.y, s.yaw)
+    poses = _hold_then_brake(model, state, options)
+    n_plans = len(poses)
     flat = poses.reshape(-1, 3)
     gaps = point_distances(flat[:, :2], regions[:, :2]) - regions[:, 2]
     exiting = contact & ~outside
@@ -84,19 +97,38 @@ def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
         gaps[:, exiting] = model.outline.distance(
             flat[:, 0], flat[:, 1], flat[:, 2], regions[exiting, :2]) - (
             regions[exiting, 2] - model.extent)
-    gaps = gaps.reshape(len(options), EXIT_STEPS, -1)
+    gaps = gaps.reshape(n_plans, EXIT_STEPS, -1)
     depth = gaps[:, :, ~outside].min(axis=2).max(axis=1)
     static = ~outside & ~orbit
     static_depth = (gaps[:, :, static].min(axis=2).max(axis=1) if static.any()
-                    else np.zeros(len(options)))
+                    else np.zeros(n_plans))
     entries = (gaps[:, :, outside].min(axis=(1, 2)) if outside.any()
-               else np.zeros(len(options)))
+               else np.zeros(n_plans))
     tolerance = margin if _static_depth_now(model, state, regions, contact,
                                             static) < -margin else 0.0
-    kept = [i for i in range(len(options)) if entries[i] >= -tolerance]
+    kept = [i for i in range(n_plans) if entries[i] >= -tolerance]
     if not kept:
-        kept = [i for i in range(len(options)) if entries[i] == entries.max()]
-    return max(kept, key=lambda i: (static_depth[i], depth[i]))
+        kept = [i for i in range(n_plans) if entries[i] == entries.max()]
+    best = max(kept, key=lambda i: (static_depth[i], depth[i]))
+    return ExitPlan(best // EXIT_STEPS, best % EXIT_STEPS + 1)
+
+
+def _hold_then_brake(model: RobotModel, state: RobotState, options: list[np.ndarray]
+                     ) -> np.ndarray:
+    """Poses ``(len(options) * EXIT_STEPS, EXIT_STEPS, 3)`` (x, y, yaw after each step):
+    row ``i * EXIT_STEPS + j - 1`` holds option ``i`` for ``j`` steps, then brakes
+    (``model.backup``) for the remaining ``EXIT_STEPS - j``."""
+    poses = np.empty((len(options), EXIT_STEPS, EXIT_STEPS, 3))
+    for i, a in enumerate(options):
+        held = state
+        for j in range(EXIT_STEPS):
+            held = model.step(held, a)
+            poses[i, j:, j] = (held.x, held.y, held.yaw)  # plans holding longer than j
+            s = held
+            for t in range(j + 1, EXIT_STEPS):  # the plan holding j + 1 steps brakes after
+                s = model.step(s, model.backup(s))
+                poses[i, j, t] = (s.x, s.y, s.yaw)
+    return poses.reshape(len(options) * EXIT_STEPS, EXIT_STEPS, 3)
 
 
 def _static_depth_now(model: RobotModel, state: RobotState, regions: np.ndarray,

@@ -208,7 +208,7 @@ class SafetyShield(CostRegions):
         outside = _distances(state, regions) >= regions[:, 2]
         if scores[best] < 0.0 and (contact & ~outside).any():
             return exit_option(model, state, options, regions, contact, orbit, outside,
-                               self.margin)
+                               self.margin).option
         if scores[best] >= 0.0 or not outside.any() or outside.all():
             return best
         kept = [i for i, a in enumerate(options)
