@@ -46,6 +46,8 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
         "clearance_0.3": {"env.eval_wrapper.planner.problem.clearance": 0.3},
         "sampled": {},  # an evaluation setting, not a config key
         "planner_no_gremlins": {"env.eval_wrapper.obstacle_kinds": no_gremlins},
+        "moving_gremlins": {"env.eval_wrapper.gremlins": "moving",
+                            "env.eval_wrapper.shield.gremlins": "moving"},
         "no_gremlins": {"env.eval_wrapper.obstacle_kinds": no_gremlins,
                         "env.eval_wrapper.shield.kinds": no_gremlins},
     }

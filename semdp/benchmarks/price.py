@@ -24,6 +24,8 @@ factor                    what changes (``semdp-eval`` arguments)
 ``clearance_0.3``         the planner's eps' 0.3 m instead of the configured (= thesis) 0.5 m
 ``planner_no_gremlins``   the planner ignores the gremlins; the filter still keeps the robot out
                           of their orbit discs (the room the planner's discs take)
+``moving_gremlins``       the planner sees each gremlin where it is, the filter certifies plans
+                          against where the gremlin law puts it (``env.gremlins=moving``)
 ``no_gremlins``           planner and filter ignore the gremlins (cost allowed: the room the
                           orbit discs take, the ceiling of any finer gremlin model)
 ========================  ==================================================================
@@ -86,6 +88,9 @@ FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
     "clearance_0.3": (("clearance=0.3",), "planner eps' 0.3 m instead of 0.5 m"),
     "planner_no_gremlins": ((f"+env.eval_wrapper.obstacle_kinds={_NO_GREMLINS}",),
                             "planner ignores the gremlins (the filter still avoids them)"),
+    "moving_gremlins": (("+env.eval_wrapper.gremlins=moving",
+                         "+env.eval_wrapper.shield.gremlins=moving"),
+                        "gremlins where the law puts them, not their orbit discs"),
     "no_gremlins": ((f"+env.eval_wrapper.obstacle_kinds={_NO_GREMLINS}",
                      f"+env.eval_wrapper.shield.kinds={_NO_GREMLINS}"),
                     "planner and filter ignore the gremlins"),
@@ -211,8 +216,8 @@ def summary_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def markdown(rows: list[dict[str, Any]], command: str) -> str:
-    """``price.md``: the table of :func:`summary_rows` with the factors' meanings, produced by
-    ``command`` (one or several lines)."""
+    """``price.md``: the table of :func:`summary_rows` with the meanings of the factors in it,
+    produced by ``command`` (one or several lines)."""
     lines = ["# The price of safety", "", "Produced with:", "", "```bash", command, "```", "",
              "Each committed policy evaluated with one factor changed (the thesis' protocol: mean "
              "action, eps' = 0.5, seeds as `semdp-eval`); reward is the mean over the policies "
@@ -221,7 +226,8 @@ def markdown(rows: list[dict[str, Any]], command: str) -> str:
              "filter replaced, filter esc. % those replaced by an escape action; plan esc., "
              "fallback and rescue % of the high-level steps.", "",
              "| factor | what changes |", "|---|---|"]
-    lines += [f"| `{name}` | {text} |" for name, (_, text) in FACTORS.items()]
+    used = {row["factor"] for row in rows}
+    lines += [f"| `{name}` | {text} |" for name, (_, text) in FACTORS.items() if name in used]
     lines += ["", "| task | robot | factor | policies | reward | Δ reward | cost | episodes with "
               "cost | filter % | filter esc. % | plan esc. % | fallback % | rescue % |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]

@@ -61,6 +61,11 @@ OBSTACLE_KINDS: tuple[str, ...] = ("hazards", "vases", "pillars", "gremlins", "b
 #: beyond the thesis); ``gt``: the simulator's ground truth ("Ours w/ gt").
 PERCEPTION_MODES: tuple[str, ...] = ("lidar", "lidar_refined", "gt")
 
+#: How the safety layer treats gremlins (``env.gremlins``): ``"orbit"``, each one's whole orbit
+#: disc; ``"moving"``, where the law puts it (the planner: where it is now, the thesis' snapshot;
+#: the filter: at each step of a certified plan, :mod:`semdp.embedded.moving_certificate`).
+GREMLIN_MODELS: tuple[str, ...] = ("orbit", "moving")
+
 #: The gremlin law (module docstring): the target's distance from home (m), its angular speed is
 #: 1 rad/s, and the tracking lag (s).
 GREMLIN_TRAVEL = 0.35
@@ -191,6 +196,7 @@ def perceive_obstacles(
     use_radii: bool = False,
     lidar_max_dist: float = 3.0,
     memory: ButtonMemory | None = None,
+    gremlins: str = "orbit",
 ) -> np.ndarray:
     """Obstacles as an (m, 3) array of [x, y, radius] for the planner.
 
@@ -210,6 +216,9 @@ def perceive_obstacles(
         lidar_max_dist: LiDAR range (Safety Gym: 3 m).
         memory: LiDAR only: the buttons channel's memory (read while the channel is blank,
             module docstring); None reads the current channel only.
+        gremlins: ``"orbit"`` (each gremlin as the disc of its orbit, :func:`gremlin_orbits`)
+            or ``"moving"`` (where it is now, the thesis' snapshot: for a filter that
+            certifies against the gremlins' motion, :mod:`semdp.embedded.moving_certificate`).
     """
     if mode not in PERCEPTION_MODES:
         raise ValueError(f"perception mode must be one of {PERCEPTION_MODES}, got {mode!r}")
@@ -225,7 +234,7 @@ def perceive_obstacles(
                 found[:, 2] = 0.0
         else:
             found = _lidar_obstacles(env, obs, kind, mode, lidar_max_dist, memory)
-        if kind == "gremlins" and len(found):
+        if kind == "gremlins" and len(found) and gremlins == "orbit":
             found = gremlin_orbits(found, episode_time(env))
         if len(found):
             rows.append(found)

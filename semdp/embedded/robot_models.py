@@ -113,6 +113,9 @@ def body_outline(robot: Robot) -> Outline:
 class RobotModel(Protocol):
     """What the safety filter needs of a robot."""
 
+    #: Physics substep (s) and substeps per env step.
+    h: float
+    substeps: int
     #: Env steps of the backup manoeuvre that bring the robot from top speed to rest.
     horizon: int
     #: Largest distance of the collision outline from the root node (m).

@@ -44,7 +44,13 @@ from semdp.embedded.brake_kernel import compiles, kernel_for
 from semdp.embedded.cost_regions import CONTACT_KINDS, CostRegions
 from semdp.embedded.exit_planning import exit_option
 from semdp.embedded.lidar_bounds import BEARING_BOUNDS
-from semdp.embedded.perception import OBSTACLE_KINDS, PERCEPTION_MODES
+from semdp.embedded.moving_certificate import Gremlins, Plan, certified_plans, choose, plans_for
+from semdp.embedded.perception import (
+    GREMLIN_MODELS,
+    OBSTACLE_KINDS,
+    PERCEPTION_MODES,
+    episode_time,
+)
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
 from solvers.planner.geometry import point_distances
@@ -78,17 +84,24 @@ class SafetyShield(CostRegions):
             :mod:`semdp.embedded.brake_kernel`, compiled to C, equal to the plain path bit for
             bit), ``"compiled"`` (that function in CasADi's virtual machine, equal too) or
             ``"python"`` (the plain path, the reference).
+        gremlins: :data:`GREMLIN_MODELS`: ``"orbit"`` (the default: a gremlin's whole orbit
+            disc is a static region) or ``"moving"`` (the disc may be crossed under a plan
+            certified against the gremlin's position at each step,
+            :mod:`semdp.embedded.moving_certificate`).
     """
 
     #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that filters
     #: unpickled from a checkpoint have it too.
     recorder: Callable[[FilterRecord], None] | None = None
+    #: Class-level defaults for filters unpickled from before the option existed.
+    gremlins: str = "orbit"
+    _plan: Plan | None = None
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
                  lidar_bearing_bound: str = "aliasing", fallback: str = "escape",
-                 kernel: str = "native") -> None:
+                 kernel: str = "native", gremlins: str = "orbit") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in PERCEPTION_MODES:
@@ -98,6 +111,9 @@ class SafetyShield(CostRegions):
             raise ValueError(f"shield fallback must be one of {FALLBACKS}, got {fallback!r}")
         if kernel not in KERNELS:
             raise ValueError(f"shield kernel must be one of {KERNELS}, got {kernel!r}")
+        if gremlins not in GREMLIN_MODELS:
+            raise ValueError(
+                f"shield gremlins must be one of {GREMLIN_MODELS}, got {gremlins!r}")
         bad = [k for k in kinds if k not in OBSTACLE_KINDS]
         if bad:
             raise ValueError(f"unknown obstacle kinds {bad}; valid: {list(OBSTACLE_KINDS)}")
@@ -110,6 +126,8 @@ class SafetyShield(CostRegions):
         self.lidar_bearing_bound = lidar_bearing_bound
         self.fallback = fallback
         self.kernel = kernel
+        self.gremlins = gremlins
+        self._plan: Plan | None = None
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
         self._radii: dict[str, float] = {}
@@ -123,6 +141,11 @@ class SafetyShield(CostRegions):
         for kind in self.kinds:
             size = sizes.get(kind, 0.0)
             self._radii[kind] = size + (self._model.extent if kind in CONTACT_KINDS else 0.0)
+
+    def new_episode(self) -> None:
+        """Forget the last episode's buttons and the moving-gremlin plan kept."""
+        super().new_episode()
+        self._plan = None
 
     def reset_stats(self) -> None:
         """Zero the counters."""
@@ -178,16 +201,20 @@ class SafetyShield(CostRegions):
         reach = model.stopping_reach(state) + 0.1
         if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
             return action  # nothing any lit bin could hold is within reach: no reconstruction
-        regions, contact, orbit = self._regions(base, obs)
-        if not len(regions):
+        every, every_contact, every_orbit = self._regions(base, obs)
+        if not len(every):
             return action
-        near = _distances(state, regions) - regions[:, 2] < reach
-        regions, contact, orbit = regions[near], contact[near], orbit[near]
+        near = _distances(state, every) - every[:, 2] < reach
+        regions, contact, orbit = every[near], every_contact[near], every_orbit[near]
         if not len(regions):
             return action
         self.stats.checked += 1
         if self._clearance(model, state, action, regions) >= 0.0:
             return action
+        if self.gremlins == "moving" and orbit.any():
+            moved = self._moving(model, state, action, base, every, every_orbit)
+            if moved is not None:
+                return moved.astype(np.asarray(action).dtype)
         brake = model.backup(state)
         if self.fallback == "brake" or self._clearance(model, state, brake, regions) >= 0.0:
             self.stats.braked += 1
@@ -196,6 +223,33 @@ class SafetyShield(CostRegions):
         options = [brake, *model.escapes]
         return np.asarray(options[self._escape(model, state, options, regions, contact, orbit)],
                           dtype=np.asarray(action).dtype)
+
+    def _moving(self, model: RobotModel, state: RobotState, action: np.ndarray, base: Any,
+                regions: np.ndarray, orbit: np.ndarray) -> np.ndarray | None:
+        """``action`` if it is certified as the first step of a plan against the gremlins'
+        positions, else the first action of a plan certified from here (the last one kept
+        first), else None (:mod:`semdp.embedded.moving_certificate`)."""
+        gremlins = Gremlins(regions[orbit], episode_time(base), model.h * model.substeps)
+        static = regions[~orbit]
+        plans = plans_for(model, self._plan)
+        after = certified_plans(model, state, np.asarray(action, dtype=np.float64), plans,
+                                static, gremlins, self.margin)
+        plan = choose(plans, after, self._plan)
+        if plan is not None:
+            self._plan = plan
+            return np.asarray(action)
+        now = certified_plans(model, state, None, plans, static, gremlins, self.margin)
+        plan = choose(plans, now, self._plan)
+        if plan is not None:
+            self.stats.braked += 1
+        elif (_distances(state, gremlins.homes) < gremlins.homes[:, 2]).any():
+            self.stats.escaped += 1  # inside an orbit disc: the plan that keeps most clearance
+            plan = plans[int(np.argmax(now))]
+        else:
+            self._plan = None
+            return None  # outside every disc: the static rules' braking and escapes
+        self._plan = plan.shorter()
+        return np.array(plan.action) if plan.hold else model.backup(state)
 
     def _escape(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
                 regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray) -> int:

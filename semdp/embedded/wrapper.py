@@ -12,6 +12,7 @@ import numpy as np
 
 from semdp.embedded.follower import Follower, PolicyFollower, default_follower
 from semdp.embedded.perception import (
+    GREMLIN_MODELS,
     OBSTACLE_KINDS,
     PERCEPTION_MODES,
     ButtonMemory,
@@ -123,6 +124,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             (:class:`~semdp.embedded.shield.SafetyShield`: one step then braking must stay out of
             every cost region, else brake or escape); None = the thesis' plain follower.
             ``info["shield_interventions"]`` counts the window's replaced actions.
+        gremlins: how the planner sees a gremlin
+            (:data:`~semdp.embedded.perception.GREMLIN_MODELS`): ``"orbit"`` (the disc of its
+            orbit) or ``"moving"`` (where it is now: for a filter with ``gremlins="moving"``).
 
     A :attr:`recorder`, when set, is given a :class:`LowLevelRecord` of every low-level step.
     """
@@ -131,6 +135,8 @@ class SafetyEmbeddedEnv(gym.Wrapper):
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that envs
     #: unpickled from a checkpoint have it too.
     recorder: Callable[[LowLevelRecord], None] | None = None
+    #: Class-level default for envs unpickled from before the option existed.
+    gremlins: str = "orbit"
     #: The planner's memory of the buttons LiDAR channel, made on first use (None until then).
     _buttons: ButtonMemory | None
 
@@ -148,6 +154,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         draw_plan: bool = True,
         frame_every: int = 0,
         shield: SafetyShield | None = None,
+        gremlins: str = "orbit",
     ) -> None:
         super().__init__(env)
         if k < 1:
@@ -160,6 +167,8 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             raise ValueError(f"brake_steps must be in [0, k={k}), got {brake_steps}")
         if frame_every < 0:
             raise ValueError(f"frame_every must be >= 0, got {frame_every}")
+        if gremlins not in GREMLIN_MODELS:
+            raise ValueError(f"gremlins must be one of {GREMLIN_MODELS}, got {gremlins!r}")
         base = env.unwrapped
         for attr in ("robot_position", "robot_heading", "obstacles", "obs_slices"):
             if not hasattr(type(base), attr) and not hasattr(base, attr):
@@ -183,6 +192,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         self.d_min = float(d_min)
         self.perception = perception
         self.obstacle_kinds = tuple(obstacle_kinds)
+        self.gremlins = gremlins
         self.brake_steps = int(brake_steps)
         self.draw_plan = draw_plan
         self.frame_every = int(frame_every)
@@ -233,9 +243,10 @@ class SafetyEmbeddedEnv(gym.Wrapper):
 
     def perceive(self, obs: np.ndarray) -> np.ndarray:
         """The planner's obstacles ``(m, 3)`` for observation ``obs`` (Eq. 3.3's set): the
-        perceived objects of :attr:`obstacle_kinds` (a gremlin: the disc of its orbit)."""
+        perceived objects of :attr:`obstacle_kinds` (a gremlin: the disc of its orbit, or
+        where it is now: :attr:`gremlins`)."""
         return perceive_obstacles(self.env.unwrapped, obs, self.perception, self.obstacle_kinds,
-                                  memory=self.button_memory)
+                                  memory=self.button_memory, gremlins=self.gremlins)
 
     def _record_frame(self) -> None:
         if self.frame_every and getattr(self.env.unwrapped, "render_mode", None) == "rgb_array":

@@ -1,0 +1,139 @@
+"""The filter's moving-gremlin certificate (``SafetyShield(gremlins="moving")``): its plan
+rollouts are the robot model's steps, it lets a robot cross an orbit disc that the static
+certificate stops it at, a robot driven at a gremlin's home from many phases of its orbit is
+never touched, and the same robots are touched when the certificate ignores the gremlins'
+motion (each at the place it is now: the check the law makes sound)."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from shielded_env import ShieldedEnv
+
+import semdp.envs  # noqa: F401  (registers the sims ids)
+from semdp.embedded import moving_certificate
+from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, plans_for
+from semdp.embedded.perception import gremlin_offset
+from semdp.embedded.plan_rollouts import rollout
+from semdp.embedded.robot_models import RobotState, robot_model
+from semdp.embedded.shield import SafetyShield
+
+ROBOTS = ("point", "car", "mass")
+#: The robots' yaw that drives them along +x under :data:`FORWARD`.
+YAW = {"point": 0.0, "car": math.pi / 2, "mass": 0.0}
+FORWARD = {"point": [1.0, 0.0], "car": [1.0, 1.0], "mass": [1.0, 0.0]}
+CORNERS = [(1.6, 1.6), (-1.6, 1.6), (1.6, -1.6), (-1.6, -1.6)]
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+@pytest.mark.parametrize("first", [None, (0.7, -0.3)])
+def test_plan_rollouts_are_the_models_steps(robot: str, first: tuple | None) -> None:
+    model = robot_model(robot)
+    start = RobotState(0.1, -0.2, 0.3, -0.4, 1.0, 0.5)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1.2, 1.2, (12, 2))
+    holds = rng.integers(0, 8, 12)
+    first_action = None if first is None else np.array(first)
+    points = rollout(model, start, first_action, actions, holds, 15)
+    for i in range(12):
+        s, by_hand = start, []
+        for k in range(15):
+            held = k - (first is not None)
+            if held < 0:
+                a = first_action
+            else:
+                a = actions[i] if held < holds[i] else model.backup(s)
+            s = model.step(s, a)
+            by_hand.append((s.x, s.y))
+        np.testing.assert_array_equal(points[i], np.array(by_hand))
+
+
+def test_plans_are_every_escape_at_every_hold_and_the_kept_one() -> None:
+    model = robot_model("point")
+    kept = Plan((1.0, 0.0), 7)
+    plans = plans_for(model, kept)
+    assert plans[0] == Plan((0.0, 0.0), 0) and plans[-1] == kept
+    assert len(plans) == 1 + len(model.escapes) * (len(HOLDS) - 1) + 1
+    assert Plan((1.0, 0.0), 7).shorter() == Plan((1.0, 0.0), 6)
+    assert Plan((1.0, 0.0), 0).shorter().hold == 0
+
+
+def _drive_at_a_gremlin(robot: str, mode: str, seed: int, wait: int,
+                        steps: int = 200) -> tuple[float, list[float]]:
+    """A robot 1.5 m west of a gremlin's home, idle for ``wait`` steps (the orbit's phase),
+    then commanded east at full speed: (cost, its x after each commanded step)."""
+    env = ShieldedEnv(gym.make(f"sims/Safety{robot.capitalize()}Button1-v0"),
+                      SafetyShield(perception="lidar", gremlins=mode))
+    layout = {"agent": (-1.5, 0.0), "agent_yaw": YAW[robot], "buttons": CORNERS,
+              "gremlins": [(0.0, 0.0)], "hazards": []}
+    env.reset(seed=seed, options={"layout": layout})
+    base = env.unwrapped
+    cost, xs = 0.0, []
+    for _ in range(wait):
+        _, _, _, _, info = env.step(np.zeros(2))
+        cost += info["cost"]
+    for _ in range(steps):
+        _, _, _, _, info = env.step(np.array(FORWARD[robot]))
+        cost += info["cost"]
+        xs.append(float(base.robot_position[0]))
+    return cost, xs
+
+
+def test_a_mass_crosses_an_orbit_disc_the_static_filter_stops_it_at() -> None:
+    """The orbit disc (radius 0.66 m with the Mass's extent and the margin) stops the static
+    filter's Mass at its edge; under the moving certificate the Mass crosses it, untouched,
+    whatever the orbit's phase when it sets off."""
+    for wait in (0, 37, 74, 111):
+        cost, xs = _drive_at_a_gremlin("mass", "orbit", 0, wait)
+        assert cost == 0.0 and max(xs) < -0.6
+        cost, xs = _drive_at_a_gremlin("mass", "moving", 0, wait)
+        assert cost == 0.0 and xs[-1] > 0.7, wait
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_a_robot_driven_at_a_gremlins_home_is_never_touched(robot: str) -> None:
+    """Eight phases of the orbit, about 0.8 rad apart: the robot gets within 0.5 m of the
+    home (the static filter keeps it 0.66-0.76 m away) and the gremlin never touches it."""
+    nearest = math.inf
+    for wait in range(0, 320, 40):
+        cost, xs = _drive_at_a_gremlin(robot, "moving", 1, wait, steps=150)
+        assert cost == 0.0, wait
+        nearest = min(nearest, *(abs(x) for x in xs))
+    assert nearest < 0.5
+
+
+def test_ignoring_the_gremlins_motion_gets_robots_touched(monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    """The same drives with each gremlin checked where it is now at every step of a plan (a
+    snapshot, as the thesis' planner sees it): some robot is touched."""
+    def snapshot(self: Gremlins, steps: int) -> np.ndarray:
+        now = self.homes[:, :2] + gremlin_offset(self.time)
+        return np.broadcast_to(now, (steps, *now.shape))
+
+    monkeypatch.setattr(moving_certificate.Gremlins, "centres", snapshot)
+    assert any(_drive_at_a_gremlin(robot, "moving", 1, wait, steps=150)[0] > 0.0
+               for robot in ROBOTS for wait in range(0, 320, 40))
+
+
+@pytest.mark.parametrize("robot", ["point", "car"])
+def test_random_commands_on_button_tasks_cost_nothing(robot: str) -> None:
+    """Uniform random commands on full Button1 and Button2 layouts (hazards, gremlins, wrong
+    buttons), seeds not used while developing the certificate: no cost of any kind."""
+    rng = np.random.default_rng(7)
+    for task, seed in (("Button1", 901), ("Button2", 902), ("Button1", 903)):
+        env = ShieldedEnv(gym.make(f"sims/Safety{robot.capitalize()}{task}-v0"),
+                          SafetyShield(perception="lidar", gremlins="moving"))
+        env.reset(seed=seed)
+        cost = 0.0
+        for _ in range(300):
+            _, _, _, _, info = env.step(rng.uniform(-1.0, 1.0, 2))
+            cost += info["cost"]
+        assert cost == 0.0, (task, seed)
+
+
+def test_an_unknown_gremlin_model_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"shield gremlins must be one of \('orbit', 'moving'\)"):
+        SafetyShield(gremlins="teleport")
