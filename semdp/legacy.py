@@ -16,7 +16,9 @@ Run configs (:func:`upgrade_run_config`), in place:
   problem's keys beside ``backend``) gets today's form, ``problem:`` / ``backend:`` /
   ``rescue_backend`` (:func:`solvers.planner.legacy.planner_node`);
 * the filter's ``lidar_bearing_bound: true / false`` (runs recorded before the aliasing bound)
-  reads ``bin`` / ``none`` (:data:`RECORDED_BOUNDS`).
+  reads ``bin`` / ``none`` (:data:`RECORDED_BOUNDS`);
+* a wrapper or filter node without ``gremlins`` (runs recorded before the moving-gremlin
+  certificate) gets ``orbit``, the whole orbit discs it ran with.
 
 Checkpoints (:class:`Unpickler`): the planner's old pickles (:mod:`solvers.planner.legacy`),
 classes that moved (:data:`RENAMED_TARGETS`), objects pickled before one of their attributes
@@ -48,8 +50,9 @@ RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}
 #: Attributes added to a pickled class since: the value an object pickled before ran with.
 ADDED_ATTRIBUTES: dict[str, dict[str, object]] = {
     "semdp.embedded.shield.SafetyShield": {"fallback": "escape", "kernel": "compiled",
-                                           "_buttons": None},
-    "semdp.embedded.wrapper.SafetyEmbeddedEnv": {"_buttons": None},
+                                           "_buttons": None, "gremlins": "orbit",
+                                           "_plan": None},
+    "semdp.embedded.wrapper.SafetyEmbeddedEnv": {"_buttons": None, "gremlins": "orbit"},
     "semdp.embedded.brake_kernel.ClearanceKernel": {"native": False},
 }
 SEMDP_TARGET = "semdp.embedded.wrapper.SafetyEmbeddedEnv"
@@ -107,6 +110,8 @@ def upgrade_node(node: Any) -> None:
             node.merge_with(_planner_legacy().planner_node(old))  # type: ignore[arg-type]
         if target == SHIELD_TARGET and node.get("lidar_bearing_bound") in RECORDED_BOUNDS:
             node.lidar_bearing_bound = RECORDED_BOUNDS[node.lidar_bearing_bound]
+        if target in (SEMDP_TARGET, SHIELD_TARGET) and "gremlins" not in node:
+            node.gremlins = "orbit"
         for key in node:
             if not (OmegaConf.is_missing(node, key) or OmegaConf.is_interpolation(node, key)):
                 upgrade_node(node[key])

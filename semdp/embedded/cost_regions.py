@@ -112,7 +112,7 @@ class CostRegions:
             if kind not in self._radii:
                 continue
             found = perceive_obstacles(base, obs, self.perception, kinds=(kind,),
-                                       memory=self.button_memory)  # gremlins: orbit discs
+                                       memory=self.button_memory, gremlins="orbit")
             if len(found):
                 found = np.array(found, dtype=np.float64)
                 found[:, 2] = self._radii[kind] + self.margin + self._orbit(base, kind)[1]

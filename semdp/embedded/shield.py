@@ -84,24 +84,21 @@ class SafetyShield(CostRegions):
             :mod:`semdp.embedded.brake_kernel`, compiled to C, equal to the plain path bit for
             bit), ``"compiled"`` (that function in CasADi's virtual machine, equal too) or
             ``"python"`` (the plain path, the reference).
-        gremlins: :data:`GREMLIN_MODELS`: ``"orbit"`` (the default: a gremlin's whole orbit
-            disc is a static region) or ``"moving"`` (the disc may be crossed under a plan
-            certified against the gremlin's position at each step,
-            :mod:`semdp.embedded.moving_certificate`).
+        gremlins: :data:`~semdp.embedded.perception.GREMLIN_MODELS`: ``"moving"`` (the
+            default: a gremlin's orbit disc may be crossed under a plan certified against the
+            gremlin's position at each step, :mod:`semdp.embedded.moving_certificate`) or
+            ``"orbit"`` (the whole disc is a static region).
     """
 
     #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that filters
     #: unpickled from a checkpoint have it too.
     recorder: Callable[[FilterRecord], None] | None = None
-    #: Class-level defaults for filters unpickled from before the option existed.
-    gremlins: str = "orbit"
-    _plan: Plan | None = None
 
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
                  lidar_bearing_bound: str = "aliasing", fallback: str = "escape",
-                 kernel: str = "native", gremlins: str = "orbit") -> None:
+                 kernel: str = "native", gremlins: str = "moving") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in PERCEPTION_MODES:

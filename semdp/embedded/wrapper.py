@@ -125,8 +125,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             every cost region, else brake or escape); None = the thesis' plain follower.
             ``info["shield_interventions"]`` counts the window's replaced actions.
         gremlins: how the planner sees a gremlin
-            (:data:`~semdp.embedded.perception.GREMLIN_MODELS`): ``"orbit"`` (the disc of its
-            orbit) or ``"moving"`` (where it is now: for a filter with ``gremlins="moving"``).
+            (:data:`~semdp.embedded.perception.GREMLIN_MODELS`): ``"moving"`` (the default:
+            where it is now, for a filter with ``gremlins="moving"``) or ``"orbit"`` (the disc
+            of its orbit).
 
     A :attr:`recorder`, when set, is given a :class:`LowLevelRecord` of every low-level step.
     """
@@ -135,8 +136,6 @@ class SafetyEmbeddedEnv(gym.Wrapper):
     #: :mod:`semdp.evaluation.cost_trace`); None records nothing. Class-level, so that envs
     #: unpickled from a checkpoint have it too.
     recorder: Callable[[LowLevelRecord], None] | None = None
-    #: Class-level default for envs unpickled from before the option existed.
-    gremlins: str = "orbit"
     #: The planner's memory of the buttons LiDAR channel, made on first use (None until then).
     _buttons: ButtonMemory | None
 
@@ -154,7 +153,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         draw_plan: bool = True,
         frame_every: int = 0,
         shield: SafetyShield | None = None,
-        gremlins: str = "orbit",
+        gremlins: str = "moving",
     ) -> None:
         super().__init__(env)
         if k < 1:
