@@ -128,7 +128,7 @@ def test_bad_arguments_exit_with_one_line(argv: list[str]) -> None:
     assert "\n" not in str(info.value) and str(info.value).startswith("semdp-bench")
 
 
-@pytest.mark.parametrize("name", ["push1", "button1"])
+@pytest.mark.parametrize("name", ["push1", "button1", "button1_gremlins"])
 def test_the_committed_price_tables_are_rebuilt_from_their_rows(name: str) -> None:
     from semdp.benchmarks.price import markdown, read_rows
     from semdp.paths import REFERENCE_DIR
