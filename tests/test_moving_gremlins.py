@@ -15,7 +15,7 @@ from shielded_env import ShieldedEnv
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded import moving_certificate
-from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, plans_for
+from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, certified_plans, plans_for
 from semdp.embedded.perception import gremlin_offset
 from semdp.embedded.plan_rollouts import rollout
 from semdp.embedded.robot_models import RobotState, robot_model
@@ -51,14 +51,29 @@ def test_plan_rollouts_are_the_models_steps(robot: str, first: tuple | None) -> 
         np.testing.assert_array_equal(points[i], np.array(by_hand))
 
 
-def test_plans_are_every_escape_at_every_hold_and_the_kept_one() -> None:
+def test_plans_are_every_escape_at_every_hold() -> None:
     model = robot_model("point")
-    kept = Plan((1.0, 0.0), 7)
-    plans = plans_for(model, kept)
-    assert plans[0] == Plan((0.0, 0.0), 0) and plans[-1] == kept
-    assert len(plans) == 1 + len(model.escapes) * (len(HOLDS) - 1) + 1
+    plans = plans_for(model)
+    assert plans[0] == Plan((0.0, 0.0), 0)
+    assert len(plans) == len(set(plans)) == 1 + len(model.escapes) * (len(HOLDS) - 1)
     assert Plan((1.0, 0.0), 7).shorter() == Plan((1.0, 0.0), 6)
     assert Plan((1.0, 0.0), 0).shorter().hold == 0
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_one_plan_stepped_by_the_model_scores_as_in_the_set(robot: str) -> None:
+    """The kept plan alone (rolled out by ``model.step``) gets the clearance it gets among
+    all plans (rolled out on arrays): same trajectory, same certificate."""
+    model = robot_model(robot)
+    state = RobotState(-0.9, 0.1, 0.4, 0.0, 0.2, 0.0)
+    static = np.array([[0.2, 0.9, 0.35], [-1.6, -0.4, 0.3]])
+    gremlins = Gremlins(np.array([[0.0, 0.0, 0.7]]), 2.0, model.h * model.substeps)
+    plans = plans_for(model)
+    first = np.array([0.5, 0.2])
+    together = certified_plans(model, state, first, plans, static, gremlins, 0.05)
+    for i in (0, 7, len(plans) - 1):
+        alone = certified_plans(model, state, first, [plans[i]], static, gremlins, 0.05)
+        assert alone[0] == pytest.approx(together[i], abs=1e-9)
 
 
 def _drive_at_a_gremlin(robot: str, mode: str, seed: int, wait: int,

@@ -20,8 +20,9 @@ forever by the static argument. The proposed action is kept if it is certified a
 step of some plan; otherwise the robot follows a plan certified from where it is. The plan
 certified at one step is, one step shorter, certified at the next (the same trajectory under
 the model), so by induction a certified plan exists at every step once one did: the filter
-keeps the last one and tries it first. Where none is certified (a contact, a gremlin seen late)
-the filter falls back to its static rules.
+keeps the last one and tries it alone first (one rollout), then the whole set. Where none is
+certified (a contact, a gremlin seen late) the filter takes the plan with the largest clearance
+inside an orbit disc, and its static rules outside.
 
 The bound relied on: the robot model's one-step error and the gremlin law's tolerance within
 the filter's margin, as for the static certificate; gaps are checked at env steps.
@@ -73,25 +74,53 @@ class Gremlins:
         return self.homes[None, :, :2] + offsets[:, None, :]
 
 
-def plans_for(model: RobotModel, kept: Plan | None) -> list[Plan]:
-    """Every escape action at every hold of :data:`HOLDS` (braking once), and ``kept``."""
+def plans_for(model: RobotModel) -> list[Plan]:
+    """Every escape action at every hold of :data:`HOLDS` (braking once)."""
     plans = [Plan((0.0, 0.0), 0)]
-    plans += [Plan((float(a[0]), float(a[1])), h) for a in model.escapes for h in HOLDS if h]
-    if kept is not None and kept not in plans:
-        plans.append(kept)
-    return plans
+    return plans + [Plan((float(a[0]), float(a[1])), h) for a in model.escapes for h in HOLDS
+                    if h]
 
 
 def certified_plans(model: RobotModel, state: RobotState, first: np.ndarray | None,
                     plans: list[Plan], static: np.ndarray, gremlins: Gremlins,
                     margin: float) -> np.ndarray:
     """Each plan's clearance (m; ``>= 0``: certified, module docstring), after ``first`` if
-    given. ``static``: rows ``[x, y, R]`` of the regions that do not move."""
-    steps = (first is not None) + max(p.hold for p in plans) + model.horizon
-    actions = np.array([p.action for p in plans])
-    holds = np.array([p.hold for p in plans])
-    points = rollout(model, state, first, actions, holds, steps)        # (n, steps, 2)
-    clearance = np.full(len(plans), np.inf)
+    given, over the steps of the longest hold and the braking. ``static``: rows ``[x, y, R]`` of
+    the regions that do not move. One plan is rolled
+    out by the model's own ``step`` (cheaper than arrays for one), several at once by
+    :func:`~semdp.embedded.plan_rollouts.rollout` (the same numbers)."""
+    steps = (first is not None) + max(HOLDS) + model.horizon
+    if len(plans) == 1:
+        points = _stepped(model, state, first, plans[0], steps)[None]
+    else:
+        points = rollout(model, state, first, np.array([p.action for p in plans]),
+                         np.array([p.hold for p in plans]), steps)   # (n, steps, 2)
+    return clearances(points, state, static, gremlins, margin)
+
+
+def _stepped(model: RobotModel, state: RobotState, first: np.ndarray | None, plan: Plan,
+             steps: int) -> np.ndarray:
+    """``(steps, 2)``: the root after each step of ``plan`` (after ``first``), by
+    ``model.step``."""
+    out = np.empty((steps, 2))
+    action = np.array(plan.action)
+    s = state
+    for k in range(steps):
+        held = k - (first is not None)
+        if held < 0:
+            s = model.step(s, first)
+        else:
+            s = model.step(s, action if held < plan.hold else model.backup(s))
+        out[k] = (s.x, s.y)
+    return out
+
+
+def clearances(points: np.ndarray, state: RobotState, static: np.ndarray,
+               gremlins: Gremlins, margin: float) -> np.ndarray:
+    """The certificate (module docstring) of trajectories ``points`` ``(n, steps, 2)`` from
+    ``state``: each one's smallest gap (m; ``>= 0``: certified)."""
+    n, steps, _ = points.shape
+    clearance = np.full(n, np.inf)
     if len(static):
         gaps = np.linalg.norm(points[:, :, None, :] - static[None, None, :, :2], axis=-1)
         gaps -= static[:, 2]                                            # (n, steps, m)
@@ -111,9 +140,7 @@ def certified_plans(model: RobotModel, state: RobotState, first: np.ndarray | No
     return clearance
 
 
-def choose(plans: list[Plan], clearance: np.ndarray, kept: Plan | None) -> Plan | None:
-    """``kept`` if it is certified, else the certified plan with the largest clearance."""
-    if kept is not None and kept in plans and clearance[plans.index(kept)] >= 0.0:
-        return kept
+def choose(plans: list[Plan], clearance: np.ndarray) -> Plan | None:
+    """The certified plan with the largest clearance (None if none is certified)."""
     best = int(np.argmax(clearance))
     return plans[best] if clearance[best] >= 0.0 else None

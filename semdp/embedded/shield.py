@@ -224,27 +224,35 @@ class SafetyShield(CostRegions):
     def _moving(self, model: RobotModel, state: RobotState, action: np.ndarray, base: Any,
                 regions: np.ndarray, orbit: np.ndarray) -> np.ndarray | None:
         """``action`` if it is certified as the first step of a plan against the gremlins'
-        positions, else the first action of a plan certified from here (the last one kept
-        first), else None (:mod:`semdp.embedded.moving_certificate`)."""
+        positions, else the first action of a plan certified from here, else None
+        (:mod:`semdp.embedded.moving_certificate`). The plan kept from the last step is tried
+        alone first, each time: one rollout instead of the whole set."""
         gremlins = Gremlins(regions[orbit], episode_time(base), model.h * model.substeps)
         static = regions[~orbit]
-        plans = plans_for(model, self._plan)
-        after = certified_plans(model, state, np.asarray(action, dtype=np.float64), plans,
-                                static, gremlins, self.margin)
-        plan = choose(plans, after, self._plan)
-        if plan is not None:
-            self._plan = plan
-            return np.asarray(action)
-        now = certified_plans(model, state, None, plans, static, gremlins, self.margin)
-        plan = choose(plans, now, self._plan)
-        if plan is not None:
-            self.stats.braked += 1
-        elif (_distances(state, gremlins.homes) < gremlins.homes[:, 2]).any():
+        kept = self._plan
+        first = np.asarray(action, dtype=np.float64)
+        for start in (first, None):
+            plan = None
+            if kept is not None and certified_plans(model, state, start, [kept], static,
+                                                    gremlins, self.margin)[0] >= 0.0:
+                plan = kept
+            else:
+                plans = plans_for(model)
+                scores = certified_plans(model, state, start, plans, static, gremlins,
+                                         self.margin)
+                plan = choose(plans, scores)
+            if plan is not None and start is not None:
+                self._plan = plan
+                return np.asarray(action)
+            if plan is not None:
+                self.stats.braked += 1
+                break
+        else:  # no plan certified from here either
+            if not (_distances(state, gremlins.homes) < gremlins.homes[:, 2]).any():
+                self._plan = None
+                return None  # outside every disc: the static rules' braking and escapes
             self.stats.escaped += 1  # inside an orbit disc: the plan that keeps most clearance
-            plan = plans[int(np.argmax(now))]
-        else:
-            self._plan = None
-            return None  # outside every disc: the static rules' braking and escapes
+            plan = plans[int(np.argmax(scores))]
         self._plan = plan.shorter()
         return np.array(plan.action) if plan.hold else model.backup(state)
 
