@@ -16,7 +16,7 @@ from shielded_env import ShieldedEnv
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded import moving_certificate
 from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, certified_plans, plans_for
-from semdp.embedded.perception import gremlin_offset
+from semdp.embedded.perception import gremlin_offset, gremlin_offsets
 from semdp.embedded.plan_rollouts import rollout
 from semdp.embedded.robot_models import RobotState, robot_model
 from semdp.embedded.shield import SafetyShield
@@ -51,6 +51,12 @@ def test_plan_rollouts_are_the_models_steps(robot: str, first: tuple | None) -> 
         np.testing.assert_array_equal(points[i], np.array(by_hand))
 
 
+def test_the_offsets_on_arrays_are_the_gremlin_law() -> None:
+    times = np.concatenate([np.linspace(0.0, 0.5, 101), np.linspace(0.0, 60.0, 1001), [-1.0]])
+    by_hand = np.array([gremlin_offset(t) for t in times])
+    np.testing.assert_allclose(gremlin_offsets(times), by_hand, rtol=0, atol=1e-15)
+
+
 def test_plans_are_every_escape_at_every_hold() -> None:
     model = robot_model("point")
     plans = plans_for(model)
@@ -62,8 +68,9 @@ def test_plans_are_every_escape_at_every_hold() -> None:
 
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_one_plan_stepped_by_the_model_scores_as_in_the_set(robot: str) -> None:
-    """The kept plan alone (rolled out by ``model.step``) gets the clearance it gets among
-    all plans (rolled out on arrays): same trajectory, same certificate."""
+    """The kept plan alone (rolled out by ``model.step``) is certified exactly when it is among
+    all plans (rolled out on arrays): the same trajectory under the same certificate (the
+    clearance's value may differ: each checks the static regions its own trajectories reach)."""
     model = robot_model(robot)
     state = RobotState(-0.9, 0.1, 0.4, 0.0, 0.2, 0.0)
     static = np.array([[0.2, 0.9, 0.35], [-1.6, -0.4, 0.3]])
@@ -71,9 +78,10 @@ def test_one_plan_stepped_by_the_model_scores_as_in_the_set(robot: str) -> None:
     plans = plans_for(model)
     first = np.array([0.5, 0.2])
     together = certified_plans(model, state, first, plans, static, gremlins, 0.05)
-    for i in (0, 7, len(plans) - 1):
-        alone = certified_plans(model, state, first, [plans[i]], static, gremlins, 0.05)
-        assert alone[0] == pytest.approx(together[i], abs=1e-9)
+    assert (together >= 0.0).any() and (together < 0.0).any()
+    for i, plan in enumerate(plans):
+        alone = certified_plans(model, state, first, [plan], static, gremlins, 0.05)
+        assert (alone[0] >= 0.0) == (together[i] >= 0.0), plan
 
 
 def _drive_at_a_gremlin(robot: str, mode: str, seed: int, wait: int,

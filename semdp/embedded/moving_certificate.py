@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from semdp.embedded.exit_planning import EXIT_STEPS
-from semdp.embedded.perception import GREMLIN_TRAVEL, gremlin_offset
+from semdp.embedded.perception import GREMLIN_TRAVEL, gremlin_offsets
 from semdp.embedded.plan_rollouts import rollout
 from semdp.embedded.robot_models import RobotModel, RobotState
 
@@ -69,8 +69,7 @@ class Gremlins:
 
     def centres(self, steps: int) -> np.ndarray:
         """``(steps, g, 2)``: each gremlin's centre after each of the next ``steps`` steps."""
-        offsets = np.array([gremlin_offset(self.time + (k + 1) * self.dt)
-                            for k in range(steps)])
+        offsets = gremlin_offsets(self.time + self.dt * np.arange(1, steps + 1))
         return self.homes[None, :, :2] + offsets[:, None, :]
 
 
@@ -121,6 +120,10 @@ def clearances(points: np.ndarray, state: RobotState, static: np.ndarray,
     ``state``: each one's smallest gap (m; ``>= 0``: certified)."""
     n, steps, _ = points.shape
     clearance = np.full(n, np.inf)
+    travel = float(np.sqrt(((points - (state.x, state.y)) ** 2).sum(axis=-1)).max())
+    if len(static):  # only the regions the trajectories can reach
+        static = static[np.hypot(static[:, 0] - state.x, static[:, 1] - state.y)
+                        - static[:, 2] <= travel]
     if len(static):
         gaps = np.linalg.norm(points[:, :, None, :] - static[None, None, :, :2], axis=-1)
         gaps -= static[:, 2]                                            # (n, steps, m)

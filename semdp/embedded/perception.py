@@ -92,6 +92,15 @@ def gremlin_offset(t: float) -> np.ndarray:
     return np.array([z.real, z.imag])
 
 
+def gremlin_offsets(times: np.ndarray) -> np.ndarray:
+    """``(len(times), 2)``: :func:`gremlin_offset` at each of ``times`` (s), on arrays (the
+    same closed form; tests/test_moving_gremlins.py checks it against the scalar one)."""
+    t = np.maximum(np.asarray(times, dtype=np.float64), 0.0)
+    scale = GREMLIN_TRAVEL * 1j / (1.0 - 1j * GREMLIN_LAG_S)
+    z = scale * np.exp(-1j * t) - scale * np.exp(-t / GREMLIN_LAG_S)
+    return np.stack([z.real, z.imag], axis=-1)
+
+
 def gremlin_orbits(found: np.ndarray, t: float) -> np.ndarray:
     """The orbit discs of gremlins seen at rows ``[x, y, r]`` at episode time ``t``: centred at
     their homes (``g - o(t)``), the radius grown by :data:`GREMLIN_ORBIT` (module docstring)."""

@@ -55,10 +55,13 @@ class _PointLaw:
     def held_or_backup(self, holding: np.ndarray, x: np.ndarray, y: np.ndarray,
                        vx: np.ndarray, vy: np.ndarray, yaw: np.ndarray, w: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
+        m = self.m
         forward = vx * np.cos(yaw) + vy * np.sin(yaw)
-        backup = np.stack([np.clip(-0.2 * forward, -1.0, 1.0), np.zeros_like(forward)], axis=1)
-        gain, rate = self.command_of(backup)
-        return np.where(holding, self.held[0], gain), np.where(holding, self.held[1], rate)
+        a0 = np.minimum(np.maximum(-0.2 * forward, -1.0), 1.0)               # the backup's
+        gain = m.gear * np.minimum(np.maximum(a0, -m.force_limit), m.force_limit) \
+            * m.gain_per_force
+        return np.where(holding, self.held[0], gain), np.where(holding, self.held[1],
+                                                               m._brake_rate)
 
     def step(self, command: tuple[np.ndarray, np.ndarray], x: np.ndarray, y: np.ndarray,
              vx: np.ndarray, vy: np.ndarray, yaw: np.ndarray, w: np.ndarray
