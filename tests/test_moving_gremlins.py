@@ -160,3 +160,36 @@ def test_random_commands_on_button_tasks_cost_nothing(robot: str) -> None:
 def test_an_unknown_gremlin_model_is_refused() -> None:
     with pytest.raises(ValueError, match=r"shield gremlins must be one of \('orbit', 'moving'\)"):
         SafetyShield(gremlins="teleport")
+
+
+def _press_from_inside_a_disc() -> tuple[float, float]:
+    """A Point at rest inside a gremlin's orbit disc (the gremlin starts at its home, 0.45 m
+    behind the robot), the goal button 0.3 m ahead, commanded at it at full thrust for 30
+    steps: (presses, cost)."""
+    env = ShieldedEnv(gym.make("sims/SafetyPointButton1-v0"), SafetyShield(perception="lidar"))
+    layout = {"agent": (0.45, 0.0), "agent_yaw": 0.0, "gremlins": [(0.0, 0.0)], "hazards": [],
+              "buttons": [(0.75, 0.0), (-1.6, 1.6), (1.6, -1.6), (-1.6, -1.6)]}
+    seed = next(s for s in range(40)
+                if env.reset(seed=s, options={"layout": layout}) and env.unwrapped.goal_button == 0)
+    env.reset(seed=seed, options={"layout": layout})  # the goal is the button ahead
+    presses = cost = 0.0
+    for _ in range(30):
+        _, _, _, _, info = env.step(np.array([1.0, 0.0]))
+        presses += info["goal_met"]
+        cost += info["cost"]
+    return presses, cost
+
+
+def test_plans_do_not_run_into_the_goal_button(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The plans model no contacts, and the goal button is a body that is no cost region: a
+    plan through it is not what the robot does (it presses the button, stops against it and,
+    the goal moved, must leave a wrong button within 10 steps with the gremlin coming round:
+    a trained PointButton1 run's epoch 6 touched both, 1.25 cost per episode; 0 replayed with
+    the button's region). Inside an orbit disc the filter keeps the robot off the goal button;
+    with no goal-button region the same command presses it."""
+    presses, cost = _press_from_inside_a_disc()
+    assert presses == 0.0 and cost == 0.0
+    monkeypatch.setattr(SafetyShield, "goal_button_regions",
+                        lambda self, base, obs: np.zeros((0, 3)))
+    presses, _ = _press_from_inside_a_disc()
+    assert presses >= 1.0

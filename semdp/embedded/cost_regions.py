@@ -162,6 +162,25 @@ class CostRegions:
         return (np.array(rows, dtype=np.float64), np.array(contact, dtype=bool),
                 np.array(orbit, dtype=bool))
 
+    def goal_button_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
+        """``(m, 3)`` rows ``[x, y, R]``: the goal button's contact region (Button tasks; no
+        rows elsewhere) from the goal LiDAR channel under :attr:`lidar_bearing_bound` (``bin``
+        for ``none``), or from the simulator with ground truth. Not a cost region: the plans
+        of the moving-gremlin certificate, which model no contacts, must not run into it
+        (:mod:`semdp.embedded.moving_certificate`)."""
+        if "buttons" not in self._radii or "goal_lidar" not in base.obs_slices:
+            return np.zeros((0, 3))
+        radius = self._radii["buttons"] + self.margin
+        if self.perception == "gt":
+            x, y = (float(v) for v in base.goal_position[:2])
+            return np.array([[x, y, radius]])
+        frame = LidarFrame(obs[base.obs_slices["goal_lidar"]],
+                           np.asarray(base.robot_position, dtype=np.float64),
+                           float(base.robot_heading))
+        bound = "bin" if self.lidar_bearing_bound == "none" else self.lidar_bearing_bound
+        rows = [(x, y, radius + grow) for x, y, grow in bin_regions(frame, bound)]
+        return np.array(rows, dtype=np.float64).reshape(-1, 3)
+
     def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
         """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
         each kind (exact ranges; the bearing allowance grows with range, hence the factor; a

@@ -12,7 +12,10 @@ disc while its gremlin is elsewhere on the orbit, if it can always get out again
 (:data:`HOLDS`) and then brakes (:func:`~semdp.embedded.plan_rollouts.rollout`, the filter's
 robot model). A plan is certified when, at every env step of it, the robot's disc of extent
 is out of every gremlin's body at that step's time (``home + o(t_k)``, the region's radius
-less the orbit's travel), out of every static region it is outside of now, no deeper than now
+less the orbit's travel), out of every static region it is outside of now (and of the goal
+button's contact region: the plans model no contacts, and a robot that presses the button
+stops against it and must leave it, a wrong button once the goal moves, within the grace
+period, with the gremlin coming round), no deeper than now
 (or the margin) in a static region it is inside now and out of that one too from
 :data:`~semdp.embedded.exit_planning.EXIT_STEPS` on (the Button tasks' grace period), and
 when the plan **ends at rest outside every orbit disc**. A robot at rest there is safe

@@ -209,7 +209,7 @@ class SafetyShield(CostRegions):
         if self._clearance(model, state, action, regions) >= 0.0:
             return action
         if self.gremlins == "moving" and orbit.any():
-            moved = self._moving(model, state, action, base, every, every_orbit)
+            moved = self._moving(model, state, action, base, obs, every, every_orbit)
             if moved is not None:
                 return moved.astype(np.asarray(action).dtype)
         brake = model.backup(state)
@@ -222,13 +222,13 @@ class SafetyShield(CostRegions):
                           dtype=np.asarray(action).dtype)
 
     def _moving(self, model: RobotModel, state: RobotState, action: np.ndarray, base: Any,
-                regions: np.ndarray, orbit: np.ndarray) -> np.ndarray | None:
+                obs: np.ndarray, regions: np.ndarray, orbit: np.ndarray) -> np.ndarray | None:
         """``action`` if it is certified as the first step of a plan against the gremlins'
         positions, else the first action of a plan certified from here, else None
         (:mod:`semdp.embedded.moving_certificate`). The plan kept from the last step is tried
         alone first, each time: one rollout instead of the whole set."""
         gremlins = Gremlins(regions[orbit], episode_time(base), model.h * model.substeps)
-        static = regions[~orbit]
+        static = np.concatenate([regions[~orbit], self.goal_button_regions(base, obs)])
         kept = self._plan
         first = np.asarray(action, dtype=np.float64)
         for start in (first, None):
