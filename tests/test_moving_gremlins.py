@@ -68,9 +68,10 @@ def test_plans_are_every_escape_at_every_hold() -> None:
 
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_one_plan_stepped_by_the_model_scores_as_in_the_set(robot: str) -> None:
-    """The kept plan alone (rolled out by ``model.step``) is certified exactly when it is among
-    all plans (rolled out on arrays): the same trajectory under the same certificate (the
-    clearance's value may differ: each checks the static regions its own trajectories reach)."""
+    """The kept plan alone (rolled out by ``model.step`` and ``model.brake_path``) is certified
+    exactly when it is among all plans (rolled out on arrays): the same trajectory under the
+    same certificate (the clearance's value may differ: each checks the static regions its own
+    trajectories reach)."""
     model = robot_model(robot)
     state = RobotState(-0.9, 0.1, 0.4, 0.0, 0.2, 0.0)
     static = np.array([[0.2, 0.9, 0.35], [-1.6, -0.4, 0.3]])

@@ -87,62 +87,68 @@ def certified_plans(model: RobotModel, state: RobotState, first: np.ndarray | No
                     plans: list[Plan], static: np.ndarray, gremlins: Gremlins,
                     margin: float) -> np.ndarray:
     """Each plan's clearance (m; ``>= 0``: certified, module docstring), after ``first`` if
-    given, over the steps of the longest hold and the braking. ``static``: rows ``[x, y, R]`` of
-    the regions that do not move. One plan is rolled
-    out by the model's own ``step`` (cheaper than arrays for one), several at once by
+    given, until it is at rest (its hold, then the model's braking horizon). ``static``: rows
+    ``[x, y, R]`` of the regions that do not move. One plan is rolled out by the model's own
+    ``step`` and ``brake_path`` (cheaper than arrays for one), several at once by
     :func:`~semdp.embedded.plan_rollouts.rollout` (the same numbers)."""
-    steps = (first is not None) + max(HOLDS) + model.horizon
+    holds = np.array([p.hold for p in plans])
+    ends = (first is not None) + holds + model.horizon
     if len(plans) == 1:
-        points = _stepped(model, state, first, plans[0], steps)[None]
+        points = _stepped(model, state, first, plans[0])[None]
     else:
-        points = rollout(model, state, first, np.array([p.action for p in plans]),
-                         np.array([p.hold for p in plans]), steps)   # (n, steps, 2)
-    return clearances(points, state, static, gremlins, margin)
+        points = rollout(model, state, first, np.array([p.action for p in plans]), holds,
+                         int(ends.max()))
+    return clearances(points, ends, state, static, gremlins, margin)
 
 
-def _stepped(model: RobotModel, state: RobotState, first: np.ndarray | None, plan: Plan,
-             steps: int) -> np.ndarray:
-    """``(steps, 2)``: the root after each step of ``plan`` (after ``first``), by
-    ``model.step``."""
-    out = np.empty((steps, 2))
-    action = np.array(plan.action)
+def _stepped(model: RobotModel, state: RobotState, first: np.ndarray | None,
+             plan: Plan) -> np.ndarray:
+    """``(steps, 2)``: the root after each step of ``plan`` (after ``first``) until it is at
+    rest, by ``model.step`` and ``model.brake_path``."""
     s = state
-    for k in range(steps):
-        held = k - (first is not None)
-        if held < 0:
-            s = model.step(s, first)
-        else:
-            s = model.step(s, action if held < plan.hold else model.backup(s))
-        out[k] = (s.x, s.y)
-    return out
+    held = []
+    if first is not None:
+        s = model.step(s, first)
+        held.append((s.x, s.y))
+    action = np.array(plan.action)
+    for _ in range(plan.hold):
+        s = model.step(s, action)
+        held.append((s.x, s.y))
+    return np.concatenate([np.array(held).reshape(-1, 2), model.brake_path(s)])
 
 
-def clearances(points: np.ndarray, state: RobotState, static: np.ndarray,
+def clearances(points: np.ndarray, ends: np.ndarray, state: RobotState, static: np.ndarray,
                gremlins: Gremlins, margin: float) -> np.ndarray:
     """The certificate (module docstring) of trajectories ``points`` ``(n, steps, 2)`` from
-    ``state``: each one's smallest gap (m; ``>= 0``: certified)."""
+    ``state``, trajectory ``i`` at rest after its first ``ends[i]`` steps: each one's smallest
+    gap (m; ``>= 0``: certified)."""
     n, steps, _ = points.shape
+    valid = np.arange(steps)[None, :] < ends[:, None]                    # (n, steps)
     clearance = np.full(n, np.inf)
     travel = float(np.sqrt(((points - (state.x, state.y)) ** 2).sum(axis=-1)).max())
     if len(static):  # only the regions the trajectories can reach
         static = static[np.hypot(static[:, 0] - state.x, static[:, 1] - state.y)
                         - static[:, 2] <= travel]
     if len(static):
-        gaps = np.linalg.norm(points[:, :, None, :] - static[None, None, :, :2], axis=-1)
-        gaps -= static[:, 2]                                            # (n, steps, m)
+        gaps = np.hypot(points[:, :, None, 0] - static[:, 0], points[:, :, None, 1]
+                        - static[:, 1]) - static[:, 2]                  # (n, steps, m)
         now = np.hypot(static[:, 0] - state.x, static[:, 1] - state.y) - static[:, 2]
         floor = np.where(now >= 0.0, 0.0, np.minimum(now, -margin))
         late = np.arange(steps) >= EXIT_STEPS - 1
         floor = np.where(late[:, None] & (now < 0.0)[None, :], 0.0, floor[None, :])
-        clearance = np.minimum(clearance, (gaps - floor[None]).min(axis=(1, 2)))
+        worst = np.where(valid, (gaps - floor[None]).min(axis=2), np.inf)
+        clearance = np.minimum(clearance, worst.min(axis=1))
     homes = gremlins.homes
     if len(homes):
         bodies = gremlins.centres(steps)                                # (steps, g, 2)
-        gaps = np.linalg.norm(points[:, :, None, :] - bodies[None], axis=-1)
-        gaps -= homes[:, 2] - GREMLIN_TRAVEL
-        clearance = np.minimum(clearance, gaps.min(axis=(1, 2)))
-        end = np.linalg.norm(points[:, -1, None, :] - homes[None, :, :2], axis=-1)
-        clearance = np.minimum(clearance, (end - homes[:, 2]).min(axis=1))
+        gaps = np.hypot(points[:, :, None, 0] - bodies[None, :, :, 0],
+                        points[:, :, None, 1] - bodies[None, :, :, 1])
+        worst = np.where(valid, (gaps - (homes[:, 2] - GREMLIN_TRAVEL)).min(axis=2), np.inf)
+        clearance = np.minimum(clearance, worst.min(axis=1))
+        end = points[np.arange(n), ends - 1]                            # (n, 2)
+        clearance = np.minimum(clearance, (np.hypot(end[:, None, 0] - homes[:, 0],
+                                                    end[:, None, 1] - homes[:, 1])
+                                           - homes[:, 2]).min(axis=1))
     return clearance
 
 
