@@ -47,8 +47,13 @@ def test_small_slice_has_no_cost_and_writes_the_table(tmp_path: Path,
                                                       capsys: pytest.CaptureFixture[str]) -> None:
     main(["robots=mass", "tasks=Push1", "policies=adversarial", "configs=eval,train",
           "episodes=1", "workers=1", "seed=7100", f"out={tmp_path}"])
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
     assert "2 cells, 2 episodes" in printed and "0 with cost" in printed
+    progress = captured.err.splitlines()
+    assert [line.split(":")[0] for line in progress] == ["[1/2] mass Push1 adversarial eval",
+                                                         "[2/2] mass Push1 adversarial train"]
+    assert all("0/1 episodes with cost" in line for line in progress)
     rows = list(csv.DictReader((tmp_path / "safety.csv").open()))
     assert [(r["config"], r["policy"]) for r in rows] == [("eval", "adversarial"),
                                                           ("train", "adversarial")]

@@ -211,6 +211,15 @@ def markdown_table(rows: list[dict[str, Any]], seed: int, episodes: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _progress(rows: list[dict[str, Any]], total: int, tic: float) -> None:
+    """One line on stderr per finished cell (the table is printed at the end)."""
+    r = rows[-1]
+    print(f"[{len(rows)}/{total}] {r['robot']} {r['task']} {r['policy']} {r['config']}: "
+          f"{r['episodes_with_cost']}/{r['episodes']} episodes with cost, shield "
+          f"{100 * r['shield_rate']:.2f} %, {time.perf_counter() - tic:.0f} s",
+          file=sys.stderr, flush=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     """CLI: see the module docstring."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -232,11 +241,16 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(f"semdp-bench safety: no cell: policies {','.join(policies)} do not apply to "
                  f"tasks {','.join(tasks)}")
     tic = time.perf_counter()
+    rows: list[dict[str, Any]] = []
     if workers == 1:
-        rows = [run_cell(c) for c in cells]
+        for cell in cells:
+            rows.append(run_cell(cell))
+            _progress(rows, len(cells), tic)
     else:
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            rows = list(pool.map(run_cell, cells))
+            for row in pool.map(run_cell, cells):
+                rows.append(row)
+                _progress(rows, len(cells), tic)
     print(format_table(rows))
     leaks = sum(r["episodes_with_cost"] for r in rows)
     print(f"{len(rows)} cells, {len(rows) * episodes} episodes (seeds {seed}.."
