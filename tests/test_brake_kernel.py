@@ -57,8 +57,9 @@ def test_the_shield_rejects_an_unknown_kernel() -> None:
 
 
 def _filtered_run(robot: str, kernel: str, steps: int = 250) -> tuple[np.ndarray, tuple]:
-    """Random full-throttle actions on Button1 through the filter: positions and its counts."""
-    shield = SafetyShield(kernel=kernel)
+    """Random full-throttle actions on Button1 through the filter: positions and its counts
+    (the gremlins' orbit discs static: the compiled kernel is the static certificate's)."""
+    shield = SafetyShield(kernel=kernel, gremlins="orbit")
     env = ShieldedEnv(gym.make(f"sims/Safety{robot.capitalize()}Button1-v0"), shield)
     env.reset(seed=3)
     rng = np.random.default_rng(11)

@@ -274,7 +274,7 @@ def test_semdp_keeps_subgoals_at_a_wrong_button_off_it(perception: str) -> None:
 def test_semdp_plans_around_the_gremlins_orbit_discs() -> None:
     from semdp.embedded.perception import GREMLIN_ORBIT
 
-    env = _semdp("sims/SafetyPointButton1-v0", perception="gt", k=10)
+    env = _semdp("sims/SafetyPointButton1-v0", perception="gt", k=10, gremlins="orbit")
     layout = {**BUTTON_LAYOUT, "gremlins": [(0.0, 1.0)]}
     obs, _ = env.reset(seed=0, options={"layout": layout})
     base = env.unwrapped
@@ -288,3 +288,19 @@ def test_semdp_plans_around_the_gremlins_orbit_discs() -> None:
     # static kinds stay points (the thesis' eps' covers their size)
     others = np.linalg.norm(perceived[:, :2] - (0.0, 1.0), axis=1) > 0.01
     assert np.all(perceived[others, 2] == 0.0)
+
+
+def test_semdp_plans_around_the_gremlins_where_they_are_by_default() -> None:
+    """``gremlins="moving"`` (the default): the planner sees a gremlin where it is, a point
+    (the thesis' snapshot; the filter certifies against its motion)."""
+    env = _semdp("sims/SafetyPointButton1-v0", perception="gt", k=10)
+    layout = {**BUTTON_LAYOUT, "gremlins": [(0.0, 1.0)]}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    base = env.unwrapped
+    for _ in range(5):  # 1 s in: 0.35 m from its home
+        obs, *_ = env.step(np.zeros(2))
+    perceived = env.perceive(obs)
+    where = np.array(base.gremlin_xy[0])
+    gremlin = perceived[np.argmin(np.linalg.norm(perceived[:, :2] - where, axis=1))]
+    np.testing.assert_allclose(gremlin, [*where, 0.0], atol=1e-9)
+    assert np.linalg.norm(where - (0.0, 1.0)) > 0.3
