@@ -60,6 +60,21 @@ def test_small_slice_has_no_cost_and_writes_the_table(tmp_path: Path,
     for row in rows:
         assert int(row["episodes_with_cost"]) == 0 and float(row["cost_steps_total"]) == 0.0
         assert int(row["plans"]) == 100  # 1000 low-level steps / k = 10
+    # cut short after the first cell: the same command runs only the second
+    first = (tmp_path / "cells.jsonl").read_text().splitlines()[0]
+    (tmp_path / "cells.jsonl").write_text(first + "\n")
+    (tmp_path / "safety.csv").unlink()
+    main(["robots=mass", "tasks=Push1", "policies=adversarial", "configs=eval,train",
+          "episodes=1", "workers=1", "seed=7100", f"out={tmp_path}"])
+    captured = capsys.readouterr()
+    assert "1 of 2 cells read back" in captured.err
+    assert [line.split(":")[0] for line in captured.err.splitlines()[1:]] == [
+        "[2/2] mass Push1 adversarial train"]
+    again = list(csv.DictReader((tmp_path / "safety.csv").open()))
+    assert again[0] == rows[0]  # read back as written
+    timing = "high_level_steps_per_s"
+    assert {k: v for k, v in again[1].items() if k != timing} == {
+        k: v for k, v in rows[1].items() if k != timing}  # run again: the same episodes
 
 
 def test_bad_arguments_exit_with_one_line() -> None:

@@ -23,8 +23,10 @@ configuration (``wrapper``), and counts what leaks:
 Prints one row per cell (episodes with cost, cost steps, fallback %, escape %, rescue % of the
 high-level steps, shield % of the low-level steps whose command the safety filter replaced,
 high-level steps/s, violation sources) and writes ``safety.csv`` / ``safety.json`` under
-``out=`` (default ``outputs/bench/safety_<time>``). Episodes are seeded ``seed + i`` (default
-seed 7000: not a seed range any setting was tuned on).
+``out=`` (default ``outputs/bench/safety_<time>``). Each finished cell is appended to
+``cells.jsonl`` there first, so a run cut short is continued by the same command with the same
+``out=`` (its finished cells are read back, not run again). Episodes are seeded ``seed + i``
+(default seed 7000: not a seed range any setting was tuned on).
 """
 
 from __future__ import annotations
@@ -211,10 +213,38 @@ def markdown_table(rows: list[dict[str, Any]], seed: int, episodes: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _progress(rows: list[dict[str, Any]], total: int, tic: float) -> None:
+def _key(cell: Cell) -> str:
+    """A cell's identity in ``cells.jsonl``."""
+    return json.dumps(asdict(cell), sort_keys=True)
+
+
+def _plain(value: Any) -> Any:
+    """A NumPy scalar as the Python number it holds (for ``cells.jsonl``)."""
+    return value.item() if hasattr(value, "item") else float(value)
+
+
+def _finished(path: Path) -> dict[str, dict[str, Any]]:
+    """The rows of ``cells.jsonl`` by cell (empty if there is none)."""
+    if not path.is_file():
+        return {}
+    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    return {record["cell"]: record["row"] for record in records}
+
+
+def _record(finished: Any, cells: list[Cell], rows: list[dict[str, Any]], out: Path,
+            total: int, tic: float) -> None:
+    """Append each finished row to ``rows`` and to ``cells.jsonl``, with a progress line."""
+    with (out / "cells.jsonl").open("a") as log:
+        for cell, row in zip(cells, finished, strict=False):
+            rows.append(row)
+            log.write(json.dumps({"cell": _key(cell), "row": row}, default=_plain) + "\n")
+            log.flush()
+            _progress(row, total - len(cells) + len(rows), total, tic)
+
+
+def _progress(r: dict[str, Any], done: int, total: int, tic: float) -> None:
     """One line on stderr per finished cell (the table is printed at the end)."""
-    r = rows[-1]
-    print(f"[{len(rows)}/{total}] {r['robot']} {r['task']} {r['policy']} {r['config']}: "
+    print(f"[{done}/{total}] {r['robot']} {r['task']} {r['policy']} {r['config']}: "
           f"{r['episodes_with_cost']}/{r['episodes']} episodes with cost, shield "
           f"{100 * r['shield_rate']:.2f} %, {time.perf_counter() - tic:.0f} s",
           file=sys.stderr, flush=True)
@@ -241,22 +271,26 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(f"semdp-bench safety: no cell: policies {','.join(policies)} do not apply to "
                  f"tasks {','.join(tasks)}")
     tic = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    done = _finished(out / "cells.jsonl")
+    todo = [c for c in cells if _key(c) not in done]
     rows: list[dict[str, Any]] = []
+    if len(todo) < len(cells):
+        print(f"{len(cells) - len(todo)} of {len(cells)} cells read back from "
+              f"{out / 'cells.jsonl'}", file=sys.stderr, flush=True)
     if workers == 1:
-        for cell in cells:
-            rows.append(run_cell(cell))
-            _progress(rows, len(cells), tic)
+        finished = (run_cell(cell) for cell in todo)
+        _record(finished, todo, rows, out, len(cells), tic)
     else:
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            for row in pool.map(run_cell, cells):
-                rows.append(row)
-                _progress(rows, len(cells), tic)
+            _record(pool.map(run_cell, todo), todo, rows, out, len(cells), tic)
+    new = {_key(c): row for c, row in zip(todo, rows, strict=True)}
+    rows = [done.get(_key(c)) or new[_key(c)] for c in cells]
     print(format_table(rows))
     leaks = sum(r["episodes_with_cost"] for r in rows)
     print(f"{len(rows)} cells, {len(rows) * episodes} episodes (seeds {seed}.."
           f"{seed + episodes - 1}), {leaks} with cost; {time.perf_counter() - tic:.0f} s, "
           f"{workers} workers")
-    out.mkdir(parents=True, exist_ok=True)
     (out / "safety.json").write_text(json.dumps(rows, indent=2, default=float))
     columns = [k for k in rows[0] if k not in ("violations", "violation_windows_by_source",
                                                "overrides")]
