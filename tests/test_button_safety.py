@@ -298,13 +298,14 @@ def test_a_mass_inside_orbit_discs_leaves_the_button_it_pressed(seed: int) -> No
     step in each of these episodes (checked with that rule patched in; 104 with the gremlins
     0.05 m closer), as on a trained MassButton1 run whose escapes alternated on the button it
     had pressed (1.9 cost per training episode in its epoch 5, 0 when that epoch is replayed
-    under this rule; outputs/reference/semdp_button1). With the moving-gremlin certificate
-    (the default) the Mass leaves by a certified plan: no cost either."""
+    under this rule; outputs/reference/semdp_button1). With the moving-gremlin certificate the
+    Mass leaves by a certified plan: no cost either."""
     shield = SafetyShield(perception="lidar", gremlins="orbit")
     buttons, gremlins, presses = _mass_pressing_inside_orbits(seed, 0.65, shield)
     assert presses >= 1 and shield.stats.escaped > 0
     assert buttons == 0.0 and gremlins == 0.0
-    buttons, gremlins, presses = _mass_pressing_inside_orbits(seed, 0.65, SafetyShield())
+    buttons, gremlins, presses = _mass_pressing_inside_orbits(seed, 0.65,
+                                                              SafetyShield(gremlins="moving"))
     assert presses >= 1 and buttons == 0.0 and gremlins == 0.0
 
 

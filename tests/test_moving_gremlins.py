@@ -167,7 +167,8 @@ def _press_from_inside_a_disc() -> tuple[float, float]:
     """A Point at rest inside a gremlin's orbit disc (the gremlin starts at its home, 0.45 m
     behind the robot), the goal button 0.3 m ahead, commanded at it at full thrust for 30
     steps: (presses, cost)."""
-    env = ShieldedEnv(gym.make("sims/SafetyPointButton1-v0"), SafetyShield(perception="lidar"))
+    env = ShieldedEnv(gym.make("sims/SafetyPointButton1-v0"),
+                      SafetyShield(perception="lidar", gremlins="moving"))
     layout = {"agent": (0.45, 0.0), "agent_yaw": 0.0, "gremlins": [(0.0, 0.0)], "hazards": [],
               "buttons": [(0.75, 0.0), (-1.6, 1.6), (1.6, -1.6), (-1.6, -1.6)]}
     seed = next(s for s in range(40)

@@ -290,10 +290,10 @@ def test_semdp_plans_around_the_gremlins_orbit_discs() -> None:
     assert np.all(perceived[others, 2] == 0.0)
 
 
-def test_semdp_plans_around_the_gremlins_where_they_are_by_default() -> None:
-    """``gremlins="moving"`` (the default): the planner sees a gremlin where it is, a point
-    (the thesis' snapshot; the filter certifies against its motion)."""
-    env = _semdp("sims/SafetyPointButton1-v0", perception="gt", k=10)
+def test_semdp_plans_around_the_gremlins_where_they_are_when_moving() -> None:
+    """``gremlins="moving"``: the planner sees a gremlin where it is, a point (the thesis'
+    snapshot; the filter certifies against its motion)."""
+    env = _semdp("sims/SafetyPointButton1-v0", perception="gt", k=10, gremlins="moving")
     layout = {**BUTTON_LAYOUT, "gremlins": [(0.0, 1.0)]}
     obs, _ = env.reset(seed=0, options={"layout": layout})
     base = env.unwrapped

@@ -84,10 +84,11 @@ class SafetyShield(CostRegions):
             :mod:`semdp.embedded.brake_kernel`, compiled to C, equal to the plain path bit for
             bit), ``"compiled"`` (that function in CasADi's virtual machine, equal too) or
             ``"python"`` (the plain path, the reference).
-        gremlins: :data:`~semdp.embedded.perception.GREMLIN_MODELS`: ``"moving"`` (the
-            default: a gremlin's orbit disc may be crossed under a plan certified against the
-            gremlin's position at each step, :mod:`semdp.embedded.moving_certificate`) or
-            ``"orbit"`` (the whole disc is a static region).
+        gremlins: :data:`~semdp.embedded.perception.GREMLIN_MODELS`: ``"orbit"`` (the
+            default: the whole disc is a static region) or ``"moving"`` (opt-in: a gremlin's
+            orbit disc may be crossed under a plan certified against the gremlin's position at
+            each step, :mod:`semdp.embedded.moving_certificate`; not yet cost-free on the
+            safety bench).
     """
 
     #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
@@ -98,7 +99,7 @@ class SafetyShield(CostRegions):
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
                  lidar_bearing_bound: str = "aliasing", fallback: str = "escape",
-                 kernel: str = "native", gremlins: str = "moving") -> None:
+                 kernel: str = "native", gremlins: str = "orbit") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in PERCEPTION_MODES:
