@@ -195,3 +195,20 @@ def test_plans_do_not_run_into_the_goal_button(monkeypatch: pytest.MonkeyPatch) 
                         lambda self, base, obs: np.zeros((0, 3)))
     presses, _ = _press_from_inside_a_disc()
     assert presses >= 1.0
+
+
+def test_a_point_leaves_the_button_it_pressed_by_the_exit_not_by_plans() -> None:
+    """Episode 20317 of ``semdp-bench safety`` (PointButton1, goal-seeking subgoals, evaluation
+    wrapper): the Point presses the goal button near a gremlin's orbit disc and starts its grace
+    period touching it. Inside that static region no plan of the set is certified and each
+    scores the same depth at its first step; taking the best of them every step alternated
+    between ways out, the Point stayed on the button and touched it after the grace period
+    (1 cost step, ``cost_buttons``, checked with the rule patched out). The exit of
+    :mod:`semdp.embedded.exit_planning` takes it off: no cost."""
+    from semdp.benchmarks.safety import build_semdp_env, make_policy
+    from semdp.evaluation.safety_eval import evaluate_safety
+
+    env = build_semdp_env("point", "Button1", "eval", ("env.gremlins=moving",))
+    stats = evaluate_safety(env, make_policy("goal", env, 20317), 1, seed=20317)
+    assert stats["escape_rate"] > 0 and stats["return_mean"] > 1.0  # pressed, then escaped
+    assert stats["cost_steps_total"] == 0

@@ -227,7 +227,15 @@ class SafetyShield(CostRegions):
         """``action`` if it is certified as the first step of a plan against the gremlins'
         positions, else the first action of a plan certified from here, else None
         (:mod:`semdp.embedded.moving_certificate`). The plan kept from the last step is tried
-        alone first, each time: one rollout instead of the whole set."""
+        alone first, each time: one rollout instead of the whole set.
+
+        Inside a static region (the button just pressed, once the goal moved) no plan is
+        certified and every plan scores the same depth at its first step: None, so that the
+        exit of :mod:`semdp.embedded.exit_planning` takes the robot out (best-effort plans
+        ranked by that depth alternated between ways out until the grace period ended)."""
+        if (_distances(state, regions[~orbit]) < regions[~orbit, 2]).any():
+            self._plan = None
+            return None
         gremlins = Gremlins(regions[orbit], episode_time(base), model.h * model.substeps)
         static = np.concatenate([regions[~orbit], self.goal_button_regions(base, obs)])
         kept = self._plan
