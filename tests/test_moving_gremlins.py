@@ -212,3 +212,27 @@ def test_a_point_leaves_the_button_it_pressed_by_the_exit_not_by_plans() -> None
     stats = evaluate_safety(env, make_policy("goal", env, 20317), 1, seed=20317)
     assert stats["escape_rate"] > 0 and stats["return_mean"] > 1.0  # pressed, then escaped
     assert stats["cost_steps_total"] == 0
+
+
+def test_a_command_the_certificate_keeps_is_not_counted_as_replaced() -> None:
+    """The SEMDP counts a low-level command as replaced when the filter returns another object
+    (``info["shield_interventions"]``, the shield % of the safety table). A Mass crossing an
+    orbit disc under the moving certificate keeps its command at most steps: the filter returns
+    that very command (a copy of it was counted as replaced, and the shield % read 20-58 % on
+    Button tasks where it replaced far fewer)."""
+    env = gym.make("sims/SafetyMassButton1-v0")
+    shield = SafetyShield(perception="lidar", gremlins="moving")
+    layout = {"agent": (-1.5, 0.0), "agent_yaw": YAW["mass"], "buttons": CORNERS,
+              "gremlins": [(0.0, 0.0)], "hazards": []}
+    obs, _ = env.reset(seed=0, options={"layout": layout})
+    shield.bind(env.unwrapped)
+    shield.new_episode()
+    copies = kept = 0
+    for _ in range(150):
+        command = np.array(FORWARD["mass"], dtype=np.float64)
+        applied = shield.filter(command, env.unwrapped, obs)
+        kept += applied is command
+        copies += applied is not command and np.array_equal(applied, command)
+        obs, *_ = env.step(applied)
+    assert shield.stats.checked > 0 and kept > 100
+    assert copies == 0

@@ -211,6 +211,8 @@ class SafetyShield(CostRegions):
             return action
         if self.gremlins == "moving" and orbit.any():
             moved = self._moving(model, state, action, base, obs, every, every_orbit)
+            if moved is action:
+                return action  # kept: the same object, so that callers count no intervention
             if moved is not None:
                 return moved.astype(np.asarray(action).dtype)
         brake = model.backup(state)
@@ -252,7 +254,7 @@ class SafetyShield(CostRegions):
                 plan = choose(plans, scores)
             if plan is not None and start is not None:
                 self._plan = plan
-                return np.asarray(action)
+                return action
             if plan is not None:
                 self.stats.braked += 1
                 break
