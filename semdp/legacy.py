@@ -45,6 +45,15 @@ RENAMED_TARGETS: dict[str, str] = {
     "semdp.common.self_paced.SelfPacedThresholds": "semdp.algos.sp_ppo_lag.SelfPacedThresholds",
     "semdp.embedded.artifacts.after_training": "semdp.reporting.semdp_run.after_training",
 }
+#: Modules of earlier versions -> today's (``semdp.algos.fast`` split by mechanism).
+RENAMED_MODULES: dict[str, str] = {
+    **{f"semdp.algos.fast.{m}": f"semdp.algos.kernels.{m}" for m in (
+        "written", "ppo_actor_step", "stacked_critics", "gaussian_fisher", "mlp_grads",
+        "sac_written")},
+    **{f"semdp.algos.fast.{m}": f"semdp.algos.helpers.{m}" for m in (
+        "critic_helper", "rollout_helper", "option_probe")},
+    "semdp.algos.fast.helpers": "semdp.algos.helpers.modes",
+}
 #: The filter's ``lidar_bearing_bound`` as recorded before the aliasing bound -> today's value.
 RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}
 #: Attributes added to a pickled class since: the value an object pickled before ran with.
@@ -159,6 +168,7 @@ class Unpickler(pickle.Unpickler):
                  if module.startswith("solvers.planner") else None)
         if found is not None:
             return found
+        module = RENAMED_MODULES.get(module, module)
         path = RENAMED_TARGETS.get(f"{module}.{name}", f"{module}.{name}")
         module, _, name = path.rpartition(".")
         cls = super().find_class(module, name)

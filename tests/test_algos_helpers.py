@@ -17,7 +17,7 @@ import torch
 from omegaconf import DictConfig, open_dict
 
 from semdp.algos.critic_regression import CriticTargets, regress_critics
-from semdp.algos.fast.critic_helper import CriticWorker
+from semdp.algos.helpers.critic_helper import CriticWorker
 from semdp.cli.train import run
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import ValueCritic
@@ -79,7 +79,7 @@ def test_success_flags_follow_gymnasiums_merged_final_info() -> None:
 
 @pytest.mark.parametrize("local", [1, 2])
 def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> None:
-    from semdp.algos.fast.rollout_helper import RolloutHelper, merge_parts
+    from semdp.algos.helpers.rollout_helper import RolloutHelper, merge_parts
     from semdp.algos.ppo import PPO
     from semdp.algos.rollout import noise_for, roll_part
 
@@ -194,7 +194,8 @@ def test_async_resume_matches_the_uninterrupted_sync_run(
 def test_auto_mode_probes_both_ways_and_keeps_cheap_envs_in_the_trainer(
     tiny_train: Callable[..., DictConfig], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from semdp.algos.fast import helpers, rollout_helper
+    from semdp.algos.helpers import modes as helpers
+    from semdp.algos.helpers import rollout_helper
     from semdp.cli.train import build_algorithm
 
     monkeypatch.setattr(helpers, "_cpus", lambda: 2)  # two usable cores, whatever the machine

@@ -11,7 +11,7 @@ from torch import nn
 from torch.distributions import Normal, kl_divergence
 from torch.nn.utils import parameters_to_vector
 
-from semdp.algos.fast.gaussian_fisher import GaussianFisher
+from semdp.algos.kernels.gaussian_fisher import GaussianFisher
 from semdp.cli.train import build_algorithm
 from semdp.common.networks import GaussianActor
 

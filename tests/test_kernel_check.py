@@ -14,7 +14,7 @@ from omegaconf import DictConfig
 from torch.nn.utils import parameters_to_vector
 
 from semdp.algos import critic_regression
-from semdp.algos.fast.written import KernelMismatch
+from semdp.algos.kernels.written import KernelMismatch
 from semdp.algos.ppo import PPO
 from semdp.algos.sac_learner import LearnerSettings, SACLearner
 from semdp.algos.trpo import TRPO

@@ -119,3 +119,18 @@ def test_old_planner_pickles_are_read_through_the_checkpoint_unpickler() -> None
     fixture = pickle.loads((ROOT / "tests" / "data" / "legacy_planners.pkl").read_bytes())
     planners = legacy.loads(fixture["planners"])
     assert all(type(p.settings) is PlannerSettings for p in planners.values())
+
+
+def test_classes_pickled_from_the_fast_package_load_from_their_new_modules() -> None:
+    """``semdp.algos.fast`` was split into kernels and helper processes: a checkpoint that
+    pickled one of its classes finds it where it lives now."""
+    import io
+    import pickle
+
+    from semdp.algos.helpers.option_probe import FasterOption
+    from semdp.algos.kernels.written import WrittenDerivatives
+
+    unpickler = legacy.Unpickler(io.BytesIO(pickle.dumps(None)))
+    assert unpickler.find_class("semdp.algos.fast.option_probe", "FasterOption") is FasterOption
+    assert unpickler.find_class("semdp.algos.fast.written",
+                                "WrittenDerivatives") is WrittenDerivatives

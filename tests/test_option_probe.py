@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from semdp.algos.fast.option_probe import FasterOption
+from semdp.algos.helpers.option_probe import FasterOption
 
 
 def _drive(probe: FasterOption, times: dict[bool, list[float]], epochs: int) -> list[bool]:
@@ -53,7 +53,7 @@ def test_starting_with_the_helper_measures_the_other_way_only_when_it_slows_down
 
 
 def test_idle_core_reads_the_idle_share(monkeypatch) -> None:
-    from semdp.algos.fast import option_probe
+    from semdp.algos.helpers import option_probe
 
     samples = iter([(100.0, 1000.0), (100.0 + 190.0, 1000.0 + 200.0)])  # 95 % idle of 2 CPUs
     monkeypatch.setattr(option_probe, "_cpu_times", lambda: next(samples))

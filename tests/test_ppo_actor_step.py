@@ -11,7 +11,7 @@ import torch
 from omegaconf import DictConfig
 from torch.nn.utils import parameters_to_vector
 
-from semdp.algos.fast.ppo_actor_step import PPOActorStep
+from semdp.algos.kernels.ppo_actor_step import PPOActorStep
 from semdp.algos.ppo import PPO
 from semdp.cli.train import build_algorithm
 from semdp.common.networks import GaussianActor

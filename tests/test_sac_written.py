@@ -1,4 +1,4 @@
-"""The SAC learner's ``gradients="written"`` kernel (semdp/algos/fast/sac_written.py) against
+"""The SAC learner's ``gradients="written"`` kernel (semdp/algos/kernels/sac_written.py) against
 autograd, the oracle: the gradients of each loss bit for bit on random inputs, and whole learners
 run update by update to the same parameters, optimiser states, temperatures and logs."""
 
@@ -12,7 +12,7 @@ import torch
 from hydra.errors import InstantiationException
 from omegaconf import DictConfig
 
-from semdp.algos.fast import sac_written
+from semdp.algos.kernels import sac_written
 from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
 from semdp.algos.twin_q import FusedTwinQ
 from semdp.cli.train import _config_differences, build_algorithm

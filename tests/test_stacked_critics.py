@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from semdp.algos.critic_regression import CriticTargets, regress_critics
-from semdp.algos.fast.stacked_critics import StackedCritics
-from semdp.algos.fast.written import WrittenDerivatives
+from semdp.algos.kernels.stacked_critics import StackedCritics
+from semdp.algos.kernels.written import WrittenDerivatives
 from semdp.algos.on_policy import Autograd
 from semdp.common.networks import ValueCritic
 from semdp.common.optim import FlatAdam

@@ -3,8 +3,9 @@ SP-PPO-Lag, TRPO-Lag, CPO, SAC.
 
 Hierarchy (at most two levels below the shared bases): ``OnPolicyAlgorithm -> PPO -> PPOLag ->
 SPPPOLag``, ``OnPolicyAlgorithm -> TRPO -> TRPOLag / CPO``, ``Algorithm -> SAC``. Everything else
-is composition: :mod:`semdp.algos.lagrangian`, :mod:`semdp.algos.gae`, the speed-ups of
-:mod:`semdp.algos.fast` behind their seams, ...
+is composition: :mod:`semdp.algos.lagrangian`, :mod:`semdp.algos.gae`, the speed-ups behind
+their seams: derivative kernels (:mod:`semdp.algos.kernels`) and helper processes
+(:mod:`semdp.algos.helpers`), ...
 """
 
 from semdp.algos.base import Algorithm

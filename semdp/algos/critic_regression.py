@@ -3,9 +3,9 @@ of :class:`~semdp.algos.on_policy.OnPolicyAlgorithm`): minibatch passes of the r
 and the cost critic V_c on their GAE returns, each step's loss defined once, in autograd, by
 :func:`critic_loss`.
 
-The written kernel's stacked regression (:mod:`semdp.algos.fast.stacked_critics`,
+The written kernel's stacked regression (:mod:`semdp.algos.kernels.stacked_critics`,
 ``gradients=written``) is checked against :func:`critic_loss` when an algorithm is built, and the
-critic helper process (:mod:`semdp.algos.fast.critic_helper`) runs :func:`regress_critics`.
+critic helper process (:mod:`semdp.algos.helpers.critic_helper`) runs :func:`regress_critics`.
 """
 
 from __future__ import annotations

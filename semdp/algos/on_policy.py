@@ -13,11 +13,12 @@ An epoch, in the order the subclasses' ``train_epoch`` runs it:
 5. **critics** -- :meth:`~OnPolicyAlgorithm.update_critics`: minibatch regression of V_r and V_c
    on their GAE returns (:mod:`semdp.algos.critic_regression`).
 
-Two seams chosen by constructor arguments (``conf/algo/*.yaml``) swap in the speed-ups of
-:mod:`semdp.algos.fast` without changing the plain path: ``gradients`` picks the update kernel
-(:class:`Autograd` here, or the written-out derivatives) and ``vectorization`` /
-``parallel_critics`` the rollout collector and the critic runner (this process, or helper
-processes); ``"sync"`` / ``false`` / ``"autograd"`` is the plain path throughout.
+Two seams chosen by constructor arguments (``conf/algo/*.yaml``) swap in speed-ups without
+changing the plain path: ``gradients`` picks the update kernel (:class:`Autograd` here, or the
+written-out derivatives of :mod:`semdp.algos.kernels`) and ``vectorization`` /
+``parallel_critics`` the rollout collector and the critic runner (this process, or the helper
+processes of :mod:`semdp.algos.helpers`); ``"sync"`` / ``false`` / ``"autograd"`` is the plain
+path throughout.
 """
 
 from __future__ import annotations
@@ -36,9 +37,9 @@ from torch import nn
 from semdp.algos import critic_regression
 from semdp.algos.base import Algorithm
 from semdp.algos.critic_regression import CriticTargets
-from semdp.algos.fast.helpers import with_helpers
-from semdp.algos.fast.written import WrittenDerivatives
 from semdp.algos.gae import RolloutBatch, RolloutBuffer
+from semdp.algos.helpers.modes import with_helpers
+from semdp.algos.kernels.written import WrittenDerivatives
 from semdp.algos.rollout import LocalCollector, RolloutPart, noise_for
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
@@ -51,7 +52,7 @@ GRADIENTS: tuple[str, ...] = ("written", "autograd")
 
 class Autograd:
     """The plain update kernel: no written-out derivatives, so every caller takes its own
-    autograd path (the interface of :class:`~semdp.algos.fast.written.WrittenDerivatives`)."""
+    autograd path (the interface of :class:`~semdp.algos.kernels.written.WrittenDerivatives`)."""
 
     name = "autograd"
 
@@ -114,11 +115,11 @@ class OnPolicyAlgorithm(Algorithm):
         obs_normalize: running observation normalisation on/off.
         obs_clip: clip of normalised observations.
         vectorization: ``"sync"`` (the envs step here), ``"async"`` (3/5 of them in a helper
-            process) or ``"auto"`` (:mod:`semdp.algos.fast.helpers`).
+            process) or ``"auto"`` (:mod:`semdp.algos.helpers.modes`).
         parallel_critics: regress the critics in a helper process during the actor update
             (``True``/``False``/``"auto"``).
         gradients: the update kernel: ``"autograd"`` (the losses as defined here and in the
-            algorithm's file) or the opt-in ``"written"`` (:mod:`semdp.algos.fast.written`, the
+            algorithm's file) or the opt-in ``"written"`` (:mod:`semdp.algos.kernels.written`, the
             presets' choice), checked at construction against those losses.
     """
 
@@ -177,7 +178,8 @@ class OnPolicyAlgorithm(Algorithm):
         self.buffer = RolloutBuffer(self.n_steps, self.num_envs, self.obs_dim, self.act_dim)
         self.last_ep_cost: float | None = None
         self.last_ep_length: float | None = None
-        # the seams (semdp.algos.fast): update kernel, rollout collector, critic runner
+        # the seams: update kernel (semdp.algos.kernels); rollout collector and critic runner
+        # (semdp.algos.helpers)
         self.kernel: Any = WrittenDerivatives() if gradients == "written" else Autograd()
         self.kernel.check_critics(self.critic_r, self.critic_c, self.critic_optimizer, critic_l2,
                                   critic_regression.critic_loss, self.obs_dim)

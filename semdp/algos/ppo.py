@@ -8,7 +8,7 @@ whole batch exceeds ``target_kl`` (OmniSafe's per-pass check). The cost critic i
 so that PPO logs the same columns as its constrained variants. The actor's loss is defined once,
 here (:meth:`PPO.actor_loss`), and runs through autograd by default; the presets
 (``conf/algo/ppo.yaml``) opt into a kernel with its derivatives written out
-(``gradients="written"``, :mod:`semdp.algos.fast.ppo_actor_step`), which is checked against
+(``gradients="written"``, :mod:`semdp.algos.kernels.ppo_actor_step`), which is checked against
 :meth:`PPO.actor_loss` when the algorithm is built and refuses to run if they disagree.
 
 With ``parallel_critics`` the critics regress in a helper process during the actor passes. Their
@@ -110,7 +110,7 @@ class PPO(OnPolicyAlgorithm):
                    advantages: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(loss, entropy)`` of a minibatch: the clipped surrogate of thesis Eq. 2.6, negated,
         less ``ent_coef`` times the policy's entropy. This is the definition: the written step
-        (:mod:`semdp.algos.fast.ppo_actor_step`, ``gradients="written"``) takes its gradient by
+        (:mod:`semdp.algos.kernels.ppo_actor_step`, ``gradients="written"``) takes its gradient by
         hand and is checked against it at construction (an edit here that the kernel does not
         mirror fails there, naming the kernel and ``algo.gradients=autograd``)."""
         dist = self.actor.distribution(obs)

@@ -1,7 +1,7 @@
 """One epoch's rollout: act, step, record (the first stage of PPO/TRPO, thesis Eqs. 2.4-2.7).
 
 :class:`LocalCollector` is the plain rollout collector: this process steps every sub-env
-(:mod:`semdp.algos.fast.rollout_helper` is the one that lends part of them to a helper process).
+(:mod:`semdp.algos.helpers.rollout_helper` is the one that lends part of them to a helper process).
 The sampling noise of the epoch is drawn beforehand (``torch.randn(n, act_dim)`` per step is
 what ``Normal.sample`` draws; a sample is ``noise * std + mean`` as in ``torch.normal``), so a
 rollout split between processes acts exactly as one process would: each evaluates the actor on

@@ -76,7 +76,7 @@ class SAC(Algorithm):
         critic_layer_norm: LayerNorm before every hidden ReLU of the critics
             (:class:`~semdp.algos.twin_q.FusedTwinQ`; DroQ's critic without dropout; None: off).
         gradients: how the learner computes its gradients: ``autograd`` (None; the plain
-            path) or ``written`` (:mod:`semdp.algos.fast.sac_written`: autograd's floats bit for
+            path) or ``written`` (:mod:`semdp.algos.kernels.sac_written`: autograd's floats bit for
             bit without its graph, ~20 % less time per update; ReLU networks, no LayerNorm).
     """
 

@@ -24,7 +24,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from semdp.algos.fast import sac_written
+from semdp.algos.kernels import sac_written
 from semdp.algos.twin_q import FusedTwinQ
 from semdp.common.networks import SquashedGaussianActor, forward_mlp
 from semdp.common.optim import LeanAdam
@@ -32,7 +32,7 @@ from semdp.common.optim import LeanAdam
 #: Log columns a round of updates reports (``progress.csv`` columns of SAC).
 LOG_KEYS: tuple[str, ...] = ("loss_q", "q_mean", "loss_pi", "entropy")
 #: How the learner computes its gradients: autograd, or written out
-#: (:mod:`semdp.algos.fast.sac_written`: the same floats without the graph).
+#: (:mod:`semdp.algos.kernels.sac_written`: the same floats without the graph).
 GRADIENTS: tuple[str, ...] = ("autograd", "written")
 
 
@@ -57,7 +57,7 @@ class LearnerSettings:
     policy_steps: int = 0  # actor updates each policy_frequency critic updates (0: as many)
     n_step: int = 1  # > 1: rows are n-step returns bootstrapping gamma^horizon ahead
     critic_layer_norm: bool = False  # LayerNorm before the critics' hidden ReLUs
-    gradients: str = "autograd"  # autograd | written (semdp.algos.fast.sac_written)
+    gradients: str = "autograd"  # autograd | written (semdp.algos.kernels.sac_written)
 
 
 def networks_state(owner: Any) -> dict[str, Any]:
@@ -116,7 +116,7 @@ class SACLearner:
             self.check_written()
 
     def check_written(self) -> None:
-        """The written kernel (:mod:`semdp.algos.fast.sac_written`) against this learner's own
+        """The written kernel (:mod:`semdp.algos.kernels.sac_written`) against this learner's own
         losses (:meth:`critic_loss`, :meth:`actor_loss`, :meth:`alpha_loss`) on a random
         minibatch from a generator of its own (the run's streams are not touched): loss values
         and gradients must be equal bit for bit, as they are by construction of the kernel. An
@@ -155,11 +155,11 @@ class SACLearner:
             if len(tensors) != len(written[what]) or not all(
                     torch.equal(a, b) for a, b in zip(tensors, written[what], strict=True)):
                 raise sac_written.KernelMismatch(
-                    f"the written kernel semdp.algos.fast.sac_written disagrees with "
+                    f"the written kernel semdp.algos.kernels.sac_written disagrees with "
                     f"SACLearner's own loss on a random minibatch: {what} differs (the kernel "
                     f"gives autograd's floats bit for bit, so it must be equal). The kernel "
                     f"restates SAC's derivatives by hand: mirror the edit in "
-                    f"semdp/algos/fast/sac_written.py, or turn the kernel off with the config "
+                    f"semdp/algos/kernels/sac_written.py, or turn the kernel off with the config "
                     f"option algo.gradients=autograd (or null).")
 
     # ----------------------------------------------------------------- the update
@@ -254,7 +254,7 @@ class SACLearner:
     def _update_written(self, obs: torch.Tensor, actions: torch.Tensor, target: torch.Tensor,
                        logs: dict[str, list[torch.Tensor]]) -> None:
         """:meth:`_update_autograd` with the gradients written out
-        (:mod:`semdp.algos.fast.sac_written`): the same floats, no graph."""
+        (:mod:`semdp.algos.kernels.sac_written`): the same floats, no graph."""
         s = self.settings
         hidden = self.critic.hidden
         loss_q, q, grads = sac_written.critic_loss_grads(

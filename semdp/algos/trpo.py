@@ -3,7 +3,7 @@ TRPO-Lag and CPO.
 
 One natural-gradient actor step per epoch on the whole batch: ``x = F^-1 g`` by conjugate
 gradients on Fisher-vector products (Hessian of the mean KL, damping ``cg_damping``; written out
-for the Gaussian actor, :mod:`semdp.algos.fast.gaussian_fisher`), full step
+for the Gaussian actor, :mod:`semdp.algos.kernels.gaussian_fisher`), full step
 ``sqrt(2 delta / x'Fx) x``, backtracking line search (factor ``backtrack_coef``, at most
 ``backtrack_iters`` tries) accepting the first step with KL <= ``target_kl`` and an improved
 surrogate, else keeping the old parameters. Critics: ``critic_iters`` minibatch passes at

@@ -160,7 +160,7 @@ class SquashedGaussianActor(nn.Module):
         The order of the operations is part of the contract: under autograd, ``u``'s three
         gradients are accumulated in the reverse order of its uses (``log 2 - u``, then
         ``-2 u``, then ``tanh(u)``), which the written backward of
-        :mod:`semdp.algos.fast.sac_written` reproduces bit for bit."""
+        :mod:`semdp.algos.kernels.sac_written` reproduces bit for bit."""
         span = cls.LOG_STD_MAX - cls.LOG_STD_MIN
         tanh_raw = torch.tanh(raw_log_std)
         log_std = cls.LOG_STD_MIN + 0.5 * span * (tanh_raw + 1.0)

@@ -1,7 +1,7 @@
 """Hand-written derivatives of the MLPs of :func:`~semdp.common.networks.mlp` (``Linear, act,
 ..., Linear`` with tanh or ReLU), for the update steps whose autograd bookkeeping costs more
-than their arithmetic (:mod:`semdp.algos.fast.stacked_critics`,
-:mod:`semdp.algos.fast.gaussian_fisher`).
+than their arithmetic (:mod:`semdp.algos.kernels.stacked_critics`,
+:mod:`semdp.algos.kernels.gaussian_fisher`).
 """
 
 from __future__ import annotations
@@ -77,5 +77,5 @@ def backprop_mlp(
 
 class KernelMismatch(RuntimeError):
     """A written kernel disagrees with the loss it restates (checked when the algorithm is built:
-    :class:`~semdp.algos.fast.written.WrittenDerivatives`' ``check_*`` methods,
+    :class:`~semdp.algos.kernels.written.WrittenDerivatives`' ``check_*`` methods,
     :meth:`semdp.algos.sac_learner.SACLearner.check_written`)."""

@@ -11,7 +11,7 @@ diagonal Gaussian with a state-independent ``log_std`` the derivatives are short
   in halves and ``clamp`` passes its own half inside the range);
 * d log pi / d mu = (a - mu) / sigma^2, d log pi / d log_std = (a - mu)^2 / sigma^2 - 1, and the
   entropy's d / d log_std = 1 per dimension;
-* d / d mu goes back through the mean MLP (:mod:`semdp.algos.fast.mlp_grads`).
+* d / d mu goes back through the mean MLP (:mod:`semdp.algos.kernels.mlp_grads`).
 
 So a step is ~40 tensor operations without a graph. Its Adam step is the actor's
 :class:`~semdp.common.optim.FlatAdam` on its own buffers; the numbers equal autograd's up to
@@ -19,7 +19,7 @@ rounding (tested).
 
 The loss is defined in :meth:`semdp.algos.ppo.PPO.actor_loss`; this kernel is the presets' opt-in
 (``gradients="written"``) and is checked against that definition when PPO is built
-(:meth:`~semdp.algos.fast.written.WrittenDerivatives.check_ppo`: loss, entropy and gradient on a
+(:meth:`~semdp.algos.kernels.written.WrittenDerivatives.check_ppo`: loss, entropy and gradient on a
 random minibatch, to ``RTOL`` = 1e-4 of their size; they agree to ~2e-7).
 
 Why it is kept (measured 2026-12-06 on this project's 2-core machine, loaded by other runs:
@@ -38,7 +38,7 @@ import math
 import torch
 from torch import nn
 
-from semdp.algos.fast.mlp_grads import (
+from semdp.algos.kernels.mlp_grads import (
     ACTIVATION_GRADS,
     ACTIVATIONS,
     backprop_mlp,

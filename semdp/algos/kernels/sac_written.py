@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from semdp.algos.fast.mlp_grads import KernelMismatch, mlp_layers
+from semdp.algos.kernels.mlp_grads import KernelMismatch, mlp_layers
 from semdp.common.networks import SquashedGaussianActor
 
 __all__ = ["ActorTape", "KernelMismatch", "TwinQTape", "actor_backward", "actor_forward",

@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from semdp.algos.fast.option_probe import FasterOption
+from semdp.algos.helpers.option_probe import FasterOption
 from semdp.algos.rollout import RolloutPart, roll_part
 from semdp.common.networks import GaussianActor
 from semdp.common.normalization import RunningNormalizer

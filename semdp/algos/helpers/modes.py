@@ -2,11 +2,11 @@
 
 ``"sync"``/``False`` keep the plain path; ``"async"``/``True`` always use the helper;
 ``"auto"`` (the default of both) uses a helper where the platform can fork and two CPUs are
-available, and only while it is faster: :class:`~semdp.algos.fast.option_probe.FasterOption`
+available, and only while it is faster: :class:`~semdp.algos.helpers.option_probe.FasterOption`
 measures both ways and keeps the faster (where a core is idle at the start, it begins with the
 helpers). Sub-envs with a wrapper of their own stay in the trainer (its state, e.g. the SEMDP
 wrapper's timings, is read from the trainer's copy), and so do envs whose step is cheaper than
-the pipe (:data:`~semdp.algos.fast.rollout_helper.ASYNC_MIN_STEP_S`). No choice changes a number.
+the pipe (:data:`~semdp.algos.helpers.rollout_helper.ASYNC_MIN_STEP_S`). No choice changes a number.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from semdp.algos.fast.critic_helper import CriticOwner, HelperCritics
-from semdp.algos.fast.option_probe import FasterOption, idle_core
-from semdp.algos.fast.rollout_helper import HelperCollector
+from semdp.algos.helpers.critic_helper import CriticOwner, HelperCritics
+from semdp.algos.helpers.option_probe import FasterOption, idle_core
+from semdp.algos.helpers.rollout_helper import HelperCollector
 from semdp.algos.rollout import LocalCollector
 from semdp.common.networks import GaussianActor
 from semdp.common.normalization import RunningNormalizer

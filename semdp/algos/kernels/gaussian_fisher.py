@@ -12,13 +12,13 @@ at ``theta_old``, where the means and standard deviations agree:
 ``J_mu`` the Jacobian of the mean network's outputs over the batch; the cross terms and the
 terms with second derivatives of ``mu`` vanish there. ``J_mu v`` is one forward pass of
 tangents through the MLP and ``J_mu^T u`` one backward pass, both written out with matrix
-products (:mod:`semdp.algos.fast.mlp_grads`), so a product costs the arithmetic of three passes
+products (:mod:`semdp.algos.kernels.mlp_grads`), so a product costs the arithmetic of three passes
 without autograd's double-backward graph. The activations are computed once per update.
 
 The product is defined by :meth:`semdp.algos.trpo.TRPO.kl_hessian_product` (double backward of
 ``TRPO.mean_kl``); this kernel is the presets' opt-in (``gradients="written"``) and is checked
 against it when TRPO or CPO is built
-(:meth:`~semdp.algos.fast.written.WrittenDerivatives.check_fisher`, to ``RTOL`` = 1e-4; they
+(:meth:`~semdp.algos.kernels.written.WrittenDerivatives.check_fisher`, to ``RTOL`` = 1e-4; they
 agree to ~1e-7). Not timed against ``torch.compile`` here.
 """
 
@@ -27,7 +27,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from semdp.algos.fast.mlp_grads import (
+from semdp.algos.kernels.mlp_grads import (
     ACTIVATION_GRADS,
     ACTIVATIONS,
     backprop_mlp,

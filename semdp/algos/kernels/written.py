@@ -1,5 +1,5 @@
 """The written-out update kernel (``gradients="written"``): hand-derived gradients of the
-default MLP actor and critics in place of autograd (semdp/algos/fast/__init__.py).
+default MLP actor and critics in place of autograd (semdp/algos/kernels/__init__.py).
 
 Each method returns the fast implementation where the networks and optimiser allow it
 (``FlatAdam``, the default MLPs), else ``None``: the caller then takes its own autograd path,
@@ -21,10 +21,10 @@ import torch
 from torch import nn
 from torch.distributions import Normal
 
-from semdp.algos.fast.gaussian_fisher import GaussianFisher
-from semdp.algos.fast.mlp_grads import KernelMismatch
-from semdp.algos.fast.ppo_actor_step import PPOActorStep
-from semdp.algos.fast.stacked_critics import StackedCritics
+from semdp.algos.kernels.gaussian_fisher import GaussianFisher
+from semdp.algos.kernels.mlp_grads import KernelMismatch
+from semdp.algos.kernels.ppo_actor_step import PPOActorStep
+from semdp.algos.kernels.stacked_critics import StackedCritics
 
 #: Tolerance of the construction check, relative to the largest entry of the autograd value
 #: (the kernels agree with autograd to float32 rounding, ~1e-7; an unmirrored edit moves them by
@@ -77,7 +77,7 @@ class WrittenDerivatives:
         expected = loss(critic_r, critic_c, obs, ret_r, ret_c, l2)[0]
         grad = _flat_grad(expected, [*critic_r.parameters(), *critic_c.parameters()])
         value, written = stacked.loss_and_grad(obs, ret_r, ret_c, l2)
-        where = ("StackedCritics", "semdp/algos/fast/stacked_critics.py",
+        where = ("StackedCritics", "semdp/algos/kernels/stacked_critics.py",
                  "semdp.algos.critic_regression.critic_loss")
         _compare(*where, "the loss", expected, value)
         _compare(*where, "the gradient", grad, written)
@@ -99,7 +99,7 @@ class WrittenDerivatives:
         with torch.no_grad():
             dist = actor.distribution(obs)
             old = Normal(dist.mean.detach(), dist.stddev.detach())
-        _compare("GaussianFisher", "semdp/algos/fast/gaussian_fisher.py",
+        _compare("GaussianFisher", "semdp/algos/kernels/gaussian_fisher.py",
                  "semdp.algos.trpo.TRPO.kl_hessian_product", "the Fisher-vector product",
                  product(obs, old)(v), fisher(v))
 
@@ -124,7 +124,7 @@ class WrittenDerivatives:
         expected, entropy = loss(obs, actions, old, adv)
         grad = _flat_grad(expected, list(actor.parameters()))
         value, written_entropy = step.loss_and_grad(obs, actions, old, adv, clip_range, ent_coef)
-        where = ("PPOActorStep", "semdp/algos/fast/ppo_actor_step.py",
+        where = ("PPOActorStep", "semdp/algos/kernels/ppo_actor_step.py",
                  "semdp.algos.ppo.PPO.actor_loss")
         _compare(*where, "the loss", expected, value)
         _compare(*where, "the entropy", entropy, written_entropy)

@@ -18,13 +18,13 @@ summation orders), as tested against autograd.
 
 The loss is defined in :func:`semdp.algos.critic_regression.critic_loss`; this kernel is the
 presets' opt-in (``gradients="written"``) and is checked against that definition when an on-policy
-algorithm is built (:meth:`~semdp.algos.fast.written.WrittenDerivatives.check_critics`: loss and
+algorithm is built (:meth:`~semdp.algos.kernels.written.WrittenDerivatives.check_critics`: loss and
 gradient on a random minibatch, to ``RTOL`` = 1e-4 of their size; they agree to ~2e-7).
 Why it is kept: in one PPO-Lag update (``conf/algo/ppo_lag.yaml``, ``env=point_push1``; medians
 of 5 alternating repetitions on the loaded 2-core machine, 2026-12-06) it took the update from
 3.54 s to 2.99 s (1.19x) alone; with the written actor step the update is 1.37-1.67x
 autograd's and 1.34-1.40x that of ``torch.compile`` of both losses (figures in
-:mod:`semdp.algos.fast.ppo_actor_step`).
+:mod:`semdp.algos.kernels.ppo_actor_step`).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import nn
 
-from semdp.algos.fast.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, backprop_mlp, mlp_layers
+from semdp.algos.kernels.mlp_grads import ACTIVATION_GRADS, ACTIVATIONS, backprop_mlp, mlp_layers
 from semdp.common.optim import FlatAdam
 
 

@@ -22,7 +22,7 @@ from typing import Any, Protocol
 import torch
 from torch import nn
 
-from semdp.algos.fast.option_probe import FasterOption
+from semdp.algos.helpers.option_probe import FasterOption
 from solvers.workers import Helper
 
 
