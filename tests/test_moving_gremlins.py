@@ -236,3 +236,41 @@ def test_a_command_the_certificate_keeps_is_not_counted_as_replaced() -> None:
         obs, *_ = env.step(applied)
     assert shield.stats.checked > 0 and kept > 100
     assert copies == 0
+
+
+def test_a_car_keeps_its_plan_when_the_lidar_candidates_change() -> None:
+    """Episode 20311 of ``semdp-bench safety`` (CarButton2, random subgoals from seed 20300,
+    evaluation wrapper; the subgoals of its 11 earlier episodes drawn first): the Car crosses
+    a gremlin's orbit disc under a certified plan while the LiDAR's gremlin candidates (every
+    lit bin) come and go. Checked against the last frame's candidates alone, the kept plan was
+    lost in the middle of the disc; the best uncertified plan then reversed the Car 0.4 m
+    deeper, onto a wrong button's region, where it rocked until the gremlin came round
+    (3 cost steps, ``cost_gremlins``; checked with that rule patched in). Kept against the
+    candidates it was certified against, plus any new one they do not explain: no cost."""
+    from semdp.benchmarks.safety import build_semdp_env
+    from semdp.evaluation.safety_eval import evaluate_safety
+
+    env = build_semdp_env("car", "Button2", "eval", ("env.gremlins=moving",))
+    rng = np.random.default_rng(20300)
+    rng.uniform(-1.0, 1.0, size=(11 * 100, 2))  # the 11 earlier episodes' 100 subgoals each
+    stats = evaluate_safety(env, lambda _obs: rng.uniform(-1.0, 1.0, size=2), 1, seed=20311)
+    assert stats["plans"] == 100
+    assert stats["cost_steps_total"] == 0
+
+
+def test_only_candidates_the_kept_rows_cannot_explain_are_added() -> None:
+    """Rows ``[x, y, R]`` with ``R`` = the orbit disc's radius plus the bound ``g`` on the home
+    (the LiDAR's bearing error): a row today may be the same gremlin as a kept row when their
+    bounds meet (centres at most ``g + g'`` apart) and ``g + g'`` is under 0.4 m (homes are
+    0.8 m apart), else it is added (it may hold a gremlin not seen when the plan was
+    certified). Hand-placed rows."""
+    from semdp.embedded.perception import GREMLIN_ORBIT
+
+    shield = SafetyShield(gremlins="moving")
+    base = shield.margin + GREMLIN_ORBIT  # unbound: no gremlin size or robot extent
+    shield._plan_rows = np.array([[0.0, 0.0, base + 0.1]])
+    today = np.array([[0.25, 0.0, base + 0.15],    # 0.25 <= 0.1 + 0.15: may be the same
+                      [0.0, 0.26, base + 0.15],    # 0.26 > 0.25: another gremlin
+                      [1.2, 0.0, base],            # far: another gremlin
+                      [-0.3, 0.0, base + 0.35]])   # bounds meet, but 0.45 >= 0.4: may be
+    np.testing.assert_array_equal(shield._unexplained(today), today[1:])

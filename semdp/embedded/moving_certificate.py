@@ -23,7 +23,11 @@ forever by the static argument. The proposed action is kept if it is certified a
 step of some plan; otherwise the robot follows a plan certified from where it is. The plan
 certified at one step is, one step shorter, certified at the next (the same trajectory under
 the model), so by induction a certified plan exists at every step once one did: the filter
-keeps the last one and tries it alone first (one rollout), then the whole set. Where none is
+keeps the last one and tries it alone first (one rollout), then the whole set. The induction
+needs the gremlins the plan was certified against, not the next LiDAR frame's candidates (every
+lit bin is one; they come and go as the robot turns): the kept plan is checked against today's
+candidates, else against those it was certified against plus today's that none of those can
+explain (``SafetyShield._unexplained``: a gremlin not seen then). Where none is
 certified (a contact, a gremlin seen late) the filter takes the plan with the largest clearance
 inside an orbit disc, and its static rules outside.
 

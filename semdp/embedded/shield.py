@@ -47,14 +47,18 @@ from semdp.embedded.lidar_bounds import BEARING_BOUNDS
 from semdp.embedded.moving_certificate import Gremlins, Plan, certified_plans, choose, plans_for
 from semdp.embedded.perception import (
     GREMLIN_MODELS,
+    GREMLIN_ORBIT,
     OBSTACLE_KINDS,
     PERCEPTION_MODES,
     episode_time,
 )
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
+from sims.safety_gym.config import GREMLIN_KEEPOUT
 from solvers.planner.geometry import point_distances
 
+#: The least distance (m) between two gremlins' homes: twice their placement keepout.
+GREMLIN_SPACING = 2.0 * GREMLIN_KEEPOUT
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
 
@@ -126,6 +130,7 @@ class SafetyShield(CostRegions):
         self.kernel = kernel
         self.gremlins = gremlins
         self._plan: Plan | None = None
+        self._plan_rows: np.ndarray | None = None
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
         self._radii: dict[str, float] = {}
@@ -143,7 +148,7 @@ class SafetyShield(CostRegions):
     def new_episode(self) -> None:
         """Forget the last episode's buttons and the moving-gremlin plan kept."""
         super().new_episode()
-        self._plan = None
+        self._plan, self._plan_rows = None, None
 
     def reset_stats(self) -> None:
         """Zero the counters."""
@@ -244,14 +249,17 @@ class SafetyShield(CostRegions):
         first = np.asarray(action, dtype=np.float64)
         for start in (first, None):
             plan = None
-            if kept is not None and certified_plans(model, state, start, [kept], static,
-                                                    gremlins, self.margin)[0] >= 0.0:
+            rows = None if kept is None else self._kept_rows(model, state, start, kept,
+                                                             static, gremlins)
+            if rows is not None:
                 plan = kept
             else:
                 plans = plans_for(model)
                 scores = certified_plans(model, state, start, plans, static, gremlins,
                                          self.margin)
-                plan = choose(plans, scores)
+                plan, rows = choose(plans, scores), gremlins.homes
+            if plan is not None:
+                self._plan_rows = rows
             if plan is not None and start is not None:
                 self._plan = plan
                 return action
@@ -264,8 +272,47 @@ class SafetyShield(CostRegions):
                 return None  # outside every disc: the static rules' braking and escapes
             self.stats.escaped += 1  # inside an orbit disc: the plan that keeps most clearance
             plan = plans[int(np.argmax(scores))]
+            self._plan_rows = None  # not certified: no rows to keep it against
         self._plan = plan.shorter()
         return np.array(plan.action) if plan.hold else model.backup(state)
+
+    def _kept_rows(self, model: RobotModel, state: RobotState, start: np.ndarray | None,
+                   kept: Plan, static: np.ndarray, gremlins: Gremlins) -> np.ndarray | None:
+        """The gremlin rows the kept plan (after ``start``) is certified against, else None:
+        today's rows, or else the rows it was certified against with today's rows that none
+        of those explains (:meth:`_unexplained`). Each frame's rows hold every gremlin the
+        LiDAR sees, and a gremlin's home does not move, so a plan clear of one frame's rows is
+        clear of those gremlins at every later step; the LiDAR's candidates (every lit bin) come
+        and go as the robot turns, and a plan certified against the last frame's alone was
+        lost in the middle of an orbit disc."""
+        def certified(homes: np.ndarray) -> bool:
+            rows = Gremlins(homes, gremlins.time, gremlins.dt)
+            return certified_plans(model, state, start, [kept], static, rows,
+                                   self.margin)[0] >= 0.0
+
+        if certified(gremlins.homes):
+            return gremlins.homes
+        if self._plan_rows is None:
+            return None
+        homes = np.concatenate([self._plan_rows, self._unexplained(gremlins.homes)])
+        return homes if certified(homes) else None
+
+    def _unexplained(self, homes: np.ndarray) -> np.ndarray:
+        """The rows of ``homes`` that may hold a gremlin none of the rows the kept plan was
+        certified against holds: all but those whose bound on the home (the radius beyond the
+        orbit disc's: the LiDAR's bearing error) meets a kept row's with the two bounds
+        together under half :data:`GREMLIN_SPACING`. Two gremlins' homes are at least that
+        spacing apart, so a row that meets a kept row of a gremlin seen then cannot hold
+        another one."""
+        assert self._plan_rows is not None
+        if not len(homes) or not len(self._plan_rows):
+            return homes
+        base = self._radii.get("gremlins", 0.0) + self.margin + GREMLIN_ORBIT
+        old = self._plan_rows
+        apart = np.hypot(homes[:, None, 0] - old[None, :, 0], homes[:, None, 1] - old[None, :, 1])
+        bounds = (homes[:, 2] - base)[:, None] + (old[:, 2] - base)[None, :]
+        same = (apart <= bounds + 1e-9) & (bounds < 0.5 * GREMLIN_SPACING)
+        return homes[~same.any(axis=1)]
 
     def _escape(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
                 regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray) -> int:

@@ -24,6 +24,8 @@ VASE_MASS = 8e-6
 PILLAR_RADIUS = 0.2
 BUTTON_RADIUS = 0.1
 GREMLIN_HALF = 0.1
+#: Placement keepout of a gremlin's home (Safety-Gymnasium 1.0.0): homes are >= 0.8 m apart.
+GREMLIN_KEEPOUT = 0.4
 GREMLIN_TRAVEL = 0.35
 GREMLIN_LAG_S = 0.09  # first-order tracking lag: 0.09 rad behind the target at 1 rad/s
 BUTTON_RESAMPLING_DELAY = 10  # steps
@@ -104,7 +106,7 @@ def level_spec(task: str, level: int, robot: str = "point") -> LevelSpec:
         objects["goal"] = ObjectSpec(1, 0.4)  # SG's phantom goal placement (Safety-Gymnasium 1.0.0)
         if level >= 1:
             objects["hazards"] = ObjectSpec(4 if level == 1 else 8, 0.18, True)
-            objects["gremlins"] = ObjectSpec(4 if level == 1 else 6, 0.4, True)
+            objects["gremlins"] = ObjectSpec(4 if level == 1 else 6, GREMLIN_KEEPOUT, True)
         lidar = ("buttons", "goal", "hazards", "gremlins") if level else ("buttons", "goal")
     return LevelSpec(extents=extents, objects=objects, lidar_order=lidar)
 
