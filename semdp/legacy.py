@@ -45,7 +45,8 @@ RENAMED_TARGETS: dict[str, str] = {
     "semdp.common.self_paced.SelfPacedThresholds": "semdp.algos.sp_ppo_lag.SelfPacedThresholds",
     "semdp.embedded.artifacts.after_training": "semdp.reporting.semdp_run.after_training",
 }
-#: Modules of earlier versions -> today's (``semdp.algos.fast`` split by mechanism).
+#: Modules of earlier versions -> today's (``semdp.algos.fast`` split by mechanism, SAC's
+#: modules gathered in ``semdp.algos.sac``).
 RENAMED_MODULES: dict[str, str] = {
     **{f"semdp.algos.fast.{m}": f"semdp.algos.kernels.{m}" for m in (
         "written", "ppo_actor_step", "stacked_critics", "gaussian_fisher", "mlp_grads",
@@ -53,6 +54,13 @@ RENAMED_MODULES: dict[str, str] = {
     **{f"semdp.algos.fast.{m}": f"semdp.algos.helpers.{m}" for m in (
         "critic_helper", "rollout_helper", "option_probe")},
     "semdp.algos.fast.helpers": "semdp.algos.helpers.modes",
+    # SAC became one subpackage
+    "semdp.algos.sac_learner": "semdp.algos.sac.learner",
+    "semdp.algos.twin_q": "semdp.algos.sac.twin_q",
+    "semdp.algos.learner_host": "semdp.algos.sac.learner_host",
+    "semdp.algos.learner_process": "semdp.algos.sac.learner_process",
+    "semdp.algos.replay_shared": "semdp.algos.sac.replay",
+    "semdp.algos.n_step": "semdp.algos.sac.n_step",
 }
 #: The filter's ``lidar_bearing_bound`` as recorded before the aliasing bound -> today's value.
 RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}

@@ -16,7 +16,7 @@ from torch.nn.utils import parameters_to_vector
 from semdp.algos import critic_regression
 from semdp.algos.kernels.written import KernelMismatch
 from semdp.algos.ppo import PPO
-from semdp.algos.sac_learner import LearnerSettings, SACLearner
+from semdp.algos.sac.learner import LearnerSettings, SACLearner
 from semdp.algos.trpo import TRPO
 from semdp.cli.train import build_algorithm
 from semdp.common.seeding import seed_everything

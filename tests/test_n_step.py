@@ -1,4 +1,4 @@
-"""n-step returns for SAC (semdp/algos/n_step.py): hand-computed rows, rows rebuilt from a
+"""n-step returns for SAC (semdp/algos/sac/n_step.py): hand-computed rows, rows rebuilt from a
 one-step run of the same seed and the learner's gamma^m bootstrap (exact resume with windows
 pending: tests/test_sac_learner.py)."""
 
@@ -13,8 +13,8 @@ import torch
 from hydra.errors import InstantiationException
 from omegaconf import DictConfig
 
-from semdp.algos.n_step import NStepReturns
-from semdp.algos.sac_learner import LearnerSettings, SACLearner
+from semdp.algos.sac.learner import LearnerSettings, SACLearner
+from semdp.algos.sac.n_step import NStepReturns
 from semdp.cli.train import build_algorithm
 
 

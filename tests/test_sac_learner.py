@@ -24,12 +24,12 @@ from hydra.errors import InstantiationException
 from omegaconf import DictConfig, open_dict
 from torch import nn
 
-import semdp.algos.sac as sac_module
-from semdp.algos.learner_host import ProcessLearner
-from semdp.algos.replay_shared import FIELDS, SharedReplayBuffer
+import semdp.algos.sac.algorithm as sac_module
 from semdp.algos.sac import SAC
-from semdp.algos.sac_learner import LearnerSettings, SACLearner
-from semdp.algos.twin_q import FusedTwinQ
+from semdp.algos.sac.learner import LearnerSettings, SACLearner
+from semdp.algos.sac.learner_host import ProcessLearner
+from semdp.algos.sac.replay import FIELDS, SharedReplayBuffer
+from semdp.algos.sac.twin_q import FusedTwinQ
 from semdp.cli.train import build_algorithm, run
 from semdp.common.logger import TIMING_COLUMNS
 from semdp.common.networks import SquashedGaussianActor, TwinQCritic
@@ -212,7 +212,7 @@ def test_learner_process_gives_the_inline_numbers(
     assert inline["eval"] == process["eval"]
 
 
-#: 3-step rows (semdp/algos/n_step.py) in epochs of 80 vector steps, which end inside the
+#: 3-step rows (semdp/algos/sac/n_step.py) in epochs of 80 vector steps, which end inside the
 #: 100-step episodes: windows are pending at every checkpoint.
 N_STEP = ("algo.n_step=3", "budget.steps_per_epoch=160", "total_steps=640")
 
@@ -294,7 +294,7 @@ def test_ctrl_c_on_semdp_train_ends_training_and_learner(tmp_path: Path) -> None
                 cmdline = (stat.parent / "cmdline").read_bytes()
             except OSError:
                 continue
-            if int(fields[1]) == train.pid and b"semdp.algos.learner_process" in cmdline:
+            if int(fields[1]) == train.pid and b"semdp.algos.sac.learner_process" in cmdline:
                 found.append(int(stat.parent.name))
         return found
 

@@ -13,8 +13,8 @@ from hydra.errors import InstantiationException
 from omegaconf import DictConfig
 
 from semdp.algos.kernels import sac_written
-from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
-from semdp.algos.twin_q import FusedTwinQ
+from semdp.algos.sac.learner import LOG_KEYS, LearnerSettings, SACLearner
+from semdp.algos.sac.twin_q import FusedTwinQ
 from semdp.cli.train import _config_differences, build_algorithm
 from semdp.common.networks import SquashedGaussianActor, forward_mlp, mlp
 from semdp.common.optim import LeanAdam

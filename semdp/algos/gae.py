@@ -5,7 +5,7 @@ Time-out convention: a time-out (truncation) is bootstrapped with the value of t
 observation, a termination is not. :func:`gae` takes, for every step, the value of the *next*
 state already resolved: ``V(s_{t+1})`` after an ordinary step or a time-out, and anything
 (masked by ``terminated``) after a termination. ``episode_end`` cuts the recursion at both kinds
-of end. (The replay buffer of SAC: :mod:`semdp.algos.replay_shared`.)
+of end. (The replay buffer of SAC: :mod:`semdp.algos.sac.replay`.)
 """
 
 from __future__ import annotations

@@ -78,4 +78,4 @@ def backprop_mlp(
 class KernelMismatch(RuntimeError):
     """A written kernel disagrees with the loss it restates (checked when the algorithm is built:
     :class:`~semdp.algos.kernels.written.WrittenDerivatives`' ``check_*`` methods,
-    :meth:`semdp.algos.sac_learner.SACLearner.check_written`)."""
+    :meth:`semdp.algos.sac.learner.SACLearner.check_written`)."""

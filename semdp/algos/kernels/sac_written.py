@@ -1,7 +1,7 @@
 """SAC's gradients written out: the learner's ``gradients="written"`` kernel (docs/semdp.md,
 "The main job's loop"; the high level of thesis Alg. 2, trained by SAC, Haarnoja et al. 2018).
 
-The learner's update (:class:`~semdp.algos.sac_learner.SACLearner`) is small networks on a
+The learner's update (:class:`~semdp.algos.sac.learner.SACLearner`) is small networks on a
 batch of 128: autograd's graph bookkeeping costs about as much as the arithmetic. This module
 runs the same update without a graph: every forward operation of the plain path, then, for
 each backward node autograd would run, the operation its derivative formula runs
@@ -14,7 +14,7 @@ update by update), so a run gives the same numbers with either kernel; only the 
 Covers what the main job trains: the fused twin critic without LayerNorm and the ReLU
 :class:`~semdp.common.networks.SquashedGaussianActor`; anything else raises.
 
-The losses are defined once, in :class:`~semdp.algos.sac_learner.SACLearner`
+The losses are defined once, in :class:`~semdp.algos.sac.learner.SACLearner`
 (``critic_loss``, ``actor_loss``, ``alpha_loss``); a learner built with this kernel checks it
 against them on a random minibatch, bit for bit (:meth:`SACLearner.check_written`), so an edit to
 those losses that is not mirrored here fails at construction (turn the kernel off with
@@ -76,7 +76,7 @@ class TwinQTape:
 def twin_q_forward(
     params: Sequence[torch.Tensor], hidden: Sequence[int], obs: torch.Tensor, act: torch.Tensor,
 ) -> tuple[torch.Tensor, TwinQTape]:
-    """:meth:`FusedTwinQ.forward <semdp.algos.twin_q.FusedTwinQ.forward>` (no LayerNorm),
+    """:meth:`FusedTwinQ.forward <semdp.algos.sac.twin_q.FusedTwinQ.forward>` (no LayerNorm),
     keeping what the backward needs: ``(Q1, Q2)`` as ``(2, batch)``."""
     n = len(hidden)
     w_in, b_in, *rest = params
@@ -157,7 +157,7 @@ class ActorTape:
 def actor_forward(
     actor: SquashedGaussianActor, obs: torch.Tensor, noise: torch.Tensor,
 ) -> tuple[torch.Tensor, torch.Tensor, ActorTape]:
-    """:meth:`SACLearner._policy <semdp.algos.sac_learner.SACLearner._policy>`'s operations
+    """:meth:`SACLearner._policy <semdp.algos.sac.learner.SACLearner._policy>`'s operations
     with the noise given (the trunk, recording each ``Linear``'s input, then
     :meth:`SquashedGaussianActor.reparameterised`): the action, its log-probability and the
     tape."""

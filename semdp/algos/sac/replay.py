@@ -2,7 +2,7 @@
 "The main job's loop"); every SAC loop uses it.
 
 The rows live in torch tensors, written through NumPy views by the collecting process and read with
-``index_select`` by :class:`~semdp.algos.sac_learner.SACLearner`. With ``shared`` the tensors
+``index_select`` by :class:`~semdp.algos.sac.learner.SACLearner`. With ``shared`` the tensors
 are views of one memory-mapped file that is unlinked at once (in ``/dev/shm`` where it exists):
 its descriptor, handed to the learner process (:func:`attach`), is the only name it has, so
 nothing is left behind however the processes end. Rows are only written between learner
@@ -72,7 +72,7 @@ class SharedReplayBuffer:
         """Store ``n`` transitions (leading axis), oldest first, overwriting the oldest rows.
 
         ``horizons``: env steps summed in each row's reward (n-step rows,
-        :mod:`semdp.algos.n_step`); None for one-step transitions (1).
+        :mod:`semdp.algos.sac.n_step`); None for one-step transitions (1).
         """
         if horizons is None:
             horizons = np.ones(len(rewards), dtype=np.float32)

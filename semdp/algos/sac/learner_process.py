@@ -1,5 +1,5 @@
 """The SAC learner process' handler (started by
-:class:`semdp.algos.learner_host.ProcessLearner` as a :class:`solvers.workers.Helper`; the high
+:class:`semdp.algos.sac.learner_host.ProcessLearner` as a :class:`solvers.workers.Helper`; the high
 level of thesis Alg. 2, docs/semdp.md, "The main job's loop").
 
 Requests: ``("init", settings, fd, layout, nbytes, threads)`` maps the replay file through the
@@ -14,7 +14,7 @@ from typing import Any
 
 class LearnerServer:
     """Answers the training process' requests with a
-    :class:`~semdp.algos.sac_learner.SACLearner`."""
+    :class:`~semdp.algos.sac.learner.SACLearner`."""
 
     def __init__(self) -> None:
         self.core: Any = None
@@ -22,8 +22,8 @@ class LearnerServer:
     def __call__(self, request: tuple[Any, ...]) -> Any:
         import torch
 
-        from semdp.algos.replay_shared import attach
-        from semdp.algos.sac_learner import SACLearner
+        from semdp.algos.sac.learner import SACLearner
+        from semdp.algos.sac.replay import attach
 
         command, *args = request
         if command == "init":

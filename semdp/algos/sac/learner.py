@@ -2,9 +2,10 @@
 or in a process of its own (docs/semdp.md, "The main job's loop"; the high level of thesis
 Alg. 2).
 
-:class:`SACLearner` owns the actor, the fused twin critic (:class:`~semdp.algos.twin_q.FusedTwinQ`)
-and its target, the three optimisers and the temperature, and runs ``n`` gradient updates on
-the replay rows it is told are filled, for every loop of :class:`semdp.algos.sac.SAC`. The
+:class:`SACLearner` owns the actor, the fused twin critic
+(:class:`~semdp.algos.sac.twin_q.FusedTwinQ`) and its target, the three optimisers and the
+temperature, and runs ``n`` gradient updates on the replay rows it is told are filled, for
+every loop of :class:`semdp.algos.sac.SAC`. The
 update is CleanRL's: clipped double-Q target with the entropy term, policy delay
 ``policy_frequency`` (then that many actor and temperature steps, or ``policy_steps``),
 Polyak-averaged target critics; it only drops work whose result is discarded (critic weight
@@ -25,7 +26,7 @@ import torch
 from torch import nn
 
 from semdp.algos.kernels import sac_written
-from semdp.algos.twin_q import FusedTwinQ
+from semdp.algos.sac.twin_q import FusedTwinQ
 from semdp.common.networks import SquashedGaussianActor, forward_mlp
 from semdp.common.optim import LeanAdam
 
@@ -81,7 +82,7 @@ class SACLearner:
         settings: sizes and hyper-parameters.
         storage: the replay tensors ``obs``, ``next_obs``, ``actions``, ``rewards``,
             ``terminated`` and, for n-step rows, ``horizons``
-            (:class:`~semdp.algos.replay_shared.SharedReplayBuffer.tensors`).
+            (:class:`~semdp.algos.sac.replay.SharedReplayBuffer.tensors`).
         actor: the actor to train (built here when None).
     """
 
@@ -188,7 +189,7 @@ class SACLearner:
             next_a, next_logp = self._policy(next_obs)
             q_next = self.critic_target(next_obs, next_a, self._target_params)
             soft_v = q_next.min(0).values - alpha * next_logp
-            if s.n_step > 1:  # n-step rows (semdp.algos.n_step): bootstrap gamma^m ahead
+            if s.n_step > 1:  # n-step rows (semdp.algos.sac.n_step): bootstrap gamma^m ahead
                 discount = s.gamma ** st["horizons"].index_select(0, idx)
                 target = rewards + discount * (1.0 - terminated) * soft_v
             else:

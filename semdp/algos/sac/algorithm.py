@@ -8,7 +8,7 @@ recorded in the replay buffer and logged, which is what the Safety-Embedded MDP'
 needs (thesis §3.5.1). Works on any gymnasium env with a Box action space; actions are
 tanh-squashed to [-1, 1] and scaled to the bounds.
 
-One update (:class:`~semdp.algos.sac_learner.SACLearner`), three loops (``learner``):
+One update (:class:`~semdp.algos.sac.learner.SACLearner`), three loops (``learner``):
 ``sequential`` -- each vector step is stored, then its updates run, in this process;
 ``process`` / ``inline`` -- collection proceeds in rounds of ``sync_every`` env steps while the
 updates earned by the previous round run, in a learner process on another core (``process``) or
@@ -29,10 +29,10 @@ import numpy.typing as npt
 import torch
 
 from semdp.algos.base import Algorithm
-from semdp.algos.learner_host import InlineLearner, ProcessLearner
-from semdp.algos.n_step import NStepReturns
-from semdp.algos.replay_shared import SharedReplayBuffer
-from semdp.algos.sac_learner import LOG_KEYS, LearnerSettings, SACLearner
+from semdp.algos.sac.learner import LOG_KEYS, LearnerSettings, SACLearner
+from semdp.algos.sac.learner_host import InlineLearner, ProcessLearner
+from semdp.algos.sac.n_step import NStepReturns
+from semdp.algos.sac.replay import SharedReplayBuffer
 from semdp.common.vector_stepping import merged_step_result
 from solvers.workers import HelperError
 
@@ -71,10 +71,10 @@ class SAC(Algorithm):
         sync_every: env steps (summed over sub-envs) per round of the ``process``/``inline``
             loops: the collector's weights are at most this many steps old.
         learner_threads: torch threads of the learner process.
-        n_step: rewards summed per replay row (:mod:`semdp.algos.n_step`; None or 1: one-step
+        n_step: rewards summed per replay row (:mod:`semdp.algos.sac.n_step`; None or 1: one-step
             transitions, SAC as published).
         critic_layer_norm: LayerNorm before every hidden ReLU of the critics
-            (:class:`~semdp.algos.twin_q.FusedTwinQ`; DroQ's critic without dropout; None: off).
+            (:class:`~semdp.algos.sac.twin_q.FusedTwinQ`; DroQ's critic without dropout; None: off).
         gradients: how the learner computes its gradients: ``autograd`` (None; the plain
             path) or ``written`` (:mod:`semdp.algos.kernels.sac_written`: autograd's floats bit for
             bit without its graph, ~20 % less time per update; ReLU networks, no LayerNorm).

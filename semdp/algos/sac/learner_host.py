@@ -5,7 +5,7 @@ Both hosts take the same calls from :class:`semdp.algos.sac.SAC`'s round loop --
 ``start(n_updates, size)`` when a round of collection begins, ``wait()`` when it ends,
 ``pull_actor(actor)`` to act with the new weights -- and give the same numbers:
 :class:`InlineLearner` runs the updates inside ``wait()``, :class:`ProcessLearner` sends them to
-a learner process (:mod:`semdp.algos.learner_process`) that runs them while the training process
+a learner process (:mod:`semdp.algos.sac.learner_process`) that runs them while the training process
 collects the round, on the other core. The learner process is a :class:`solvers.workers.Helper`:
 it ignores SIGINT (a terminal's Ctrl-C reaches only the training process, which stops it), exits
 when its connection closes, and fails with one :class:`~solvers.workers.HelperError` naming it.
@@ -19,8 +19,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from semdp.algos.replay_shared import SharedReplayBuffer
-from semdp.algos.sac_learner import SACLearner
+from semdp.algos.sac.learner import SACLearner
+from semdp.algos.sac.replay import SharedReplayBuffer
 from solvers.workers import Helper
 
 #: Seconds to wait for a learner process to copy its state back when it is closed.
@@ -62,7 +62,7 @@ class ProcessLearner:
     """Runs the updates in a learner process on the shared replay buffer.
 
     The process is a spawned :class:`solvers.workers.Helper`
-    (:class:`semdp.algos.learner_process.LearnerServer`) that maps the replay file through the
+    (:class:`semdp.algos.sac.learner_process.LearnerServer`) that maps the replay file through the
     descriptor it inherits; it fails, dies and stops as every helper does (one
     :class:`~solvers.workers.HelperError` naming it).
 
@@ -77,7 +77,7 @@ class ProcessLearner:
         if buffer.fd is None:
             raise ValueError("ProcessLearner needs a SharedReplayBuffer built with shared=True")
         self.core = core
-        self.helper = Helper.spawn("semdp.algos.learner_process:LearnerServer",
+        self.helper = Helper.spawn("semdp.algos.sac.learner_process:LearnerServer",
                                    "semdp-learner", pass_fds=(buffer.fd,), threads=threads)
         self.helper.send(("init", core.settings, buffer.fd, buffer.layout, buffer.nbytes,
                           int(threads)))

@@ -6,7 +6,7 @@ Rainbow and of SAC variants for small data).
 ``R = sum_{l<m} gamma^l r_{t+l}`` (the costs summed the same way) once ``m = n`` steps have
 followed ``s_t``, or, when the episode ends earlier, one row for every pending step with the
 ``m`` steps left to the end. The critic's target is then
-``R + gamma^m (1 - terminated) V(s_{t+m})`` (:class:`~semdp.algos.sac_learner.SACLearner`):
+``R + gamma^m (1 - terminated) V(s_{t+m})`` (:class:`~semdp.algos.sac.learner.SACLearner`):
 a time-out still bootstraps, now ``m`` steps ahead.
 
 With ``n = 1`` a row is the one-step transition itself; SAC then stores its transitions directly
