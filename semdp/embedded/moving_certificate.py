@@ -95,14 +95,21 @@ def certified_plans(model: RobotModel, state: RobotState, first: np.ndarray | No
     ``[x, y, R]`` of the regions that do not move. One plan is rolled out by the model's own
     ``step`` and ``brake_path`` (cheaper than arrays for one), several at once by
     :func:`~semdp.embedded.plan_rollouts.rollout` (the same numbers)."""
+    points, ends = plan_points(model, state, first, plans)
+    return clearances(points, ends, state, static, gremlins, margin)
+
+
+def plan_points(model: RobotModel, state: RobotState, first: np.ndarray | None,
+                plans: list[Plan]) -> tuple[np.ndarray, np.ndarray]:
+    """``(points, ends)``: the root after each step of each plan (after ``first`` if given),
+    ``(n, steps, 2)``, plan ``i`` at rest after its first ``ends[i]`` steps (its hold, then the
+    model's braking horizon); :func:`clearances` scores them."""
     holds = np.array([p.hold for p in plans])
     ends = (first is not None) + holds + model.horizon
     if len(plans) == 1:
-        points = _stepped(model, state, first, plans[0])[None]
-    else:
-        points = rollout(model, state, first, np.array([p.action for p in plans]), holds,
-                         int(ends.max()))
-    return clearances(points, ends, state, static, gremlins, margin)
+        return _stepped(model, state, first, plans[0])[None], ends
+    return rollout(model, state, first, np.array([p.action for p in plans]), holds,
+                   int(ends.max())), ends
 
 
 def _stepped(model: RobotModel, state: RobotState, first: np.ndarray | None,

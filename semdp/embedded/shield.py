@@ -44,7 +44,15 @@ from semdp.embedded.brake_kernel import compiles, kernel_for
 from semdp.embedded.cost_regions import CONTACT_KINDS, CostRegions
 from semdp.embedded.exit_planning import exit_option
 from semdp.embedded.lidar_bounds import BEARING_BOUNDS
-from semdp.embedded.moving_certificate import Gremlins, Plan, certified_plans, choose, plans_for
+from semdp.embedded.moving_certificate import (
+    Gremlins,
+    Plan,
+    certified_plans,
+    choose,
+    clearances,
+    plan_points,
+    plans_for,
+)
 from semdp.embedded.perception import (
     GREMLIN_MODELS,
     GREMLIN_ORBIT,
@@ -285,10 +293,11 @@ class SafetyShield(CostRegions):
         clear of those gremlins at every later step; the LiDAR's candidates (every lit bin) come
         and go as the robot turns, and a plan certified against the last frame's alone was
         lost in the middle of an orbit disc."""
+        points, ends = plan_points(model, state, start, [kept])
+
         def certified(homes: np.ndarray) -> bool:
             rows = Gremlins(homes, gremlins.time, gremlins.dt)
-            return certified_plans(model, state, start, [kept], static, rows,
-                                   self.margin)[0] >= 0.0
+            return clearances(points, ends, state, static, rows, self.margin)[0] >= 0.0
 
         if certified(gremlins.homes):
             return gremlins.homes
