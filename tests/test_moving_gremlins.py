@@ -274,21 +274,3 @@ def test_only_candidates_the_kept_rows_cannot_explain_are_added() -> None:
                       [1.2, 0.0, base],            # far: another gremlin
                       [-0.3, 0.0, base + 0.35]])   # bounds meet, but 0.45 >= 0.4: may be
     np.testing.assert_array_equal(shield._unexplained(today), today[1:])
-
-
-def test_without_a_certified_plan_in_a_disc_the_robot_keeps_off_static_regions() -> None:
-    """Episode 9627 of ``semdp-bench safety`` (PointButton1, goal-seeking subgoals, evaluation
-    wrapper; one of ``tests/test_button_safety.py``'s regressions, here under ``moving``): the
-    Point, driven at the goal button past a wrong button, stands inside a gremlin's orbit disc at
-    the edge of the wrong button's region with no plan certified. The plan with the most
-    clearance overall reversed it into the button's region, the exit took it out again, and it
-    rocked there until the gremlin came round (7 cost steps, ``cost_gremlins``; checked with that
-    rule patched in). Among the plans that enter no static region, the one farthest from the
-    gremlins: no cost."""
-    from semdp.benchmarks.safety import build_semdp_env, make_policy
-    from semdp.evaluation.safety_eval import evaluate_safety
-
-    env = build_semdp_env("point", "Button1", "eval", ("env.gremlins=moving",))
-    stats = evaluate_safety(env, make_policy("goal", env, 9627), 1, seed=9627)
-    assert stats["escape_rate"] > 0 and stats["return_mean"] > 1.0
-    assert stats["cost_steps_total"] == 0

@@ -28,10 +28,8 @@ needs the gremlins the plan was certified against, not the next LiDAR frame's ca
 lit bin is one; they come and go as the robot turns): the kept plan is checked against today's
 candidates, else against those it was certified against plus today's that none of those can
 explain (``SafetyShield._unexplained``: a gremlin not seen then). Where none is
-certified (a contact, a gremlin seen late) the filter takes, inside an orbit disc, the plan
-that keeps farthest from the gremlins among those that enter no static region (a wrong button
-is a cost for certain, the disc only where the gremlin comes), else the one with the largest
-clearance; outside the discs, its static rules.
+certified (a contact, a gremlin seen late) the filter takes the plan with the largest clearance
+inside an orbit disc, and its static rules outside.
 
 The bound relied on: the robot model's one-step error and the gremlin law's tolerance within
 the filter's margin, as for the static certificate; gaps are checked at env steps.
@@ -135,18 +133,9 @@ def clearances(points: np.ndarray, ends: np.ndarray, state: RobotState, static: 
     """The certificate (module docstring) of trajectories ``points`` ``(n, steps, 2)`` from
     ``state``, trajectory ``i`` at rest after its first ``ends[i]`` steps: each one's smallest
     gap (m; ``>= 0``: certified)."""
-    return np.minimum(*clearance_parts(points, ends, state, static, gremlins, margin))
-
-
-def clearance_parts(points: np.ndarray, ends: np.ndarray, state: RobotState,
-                    static: np.ndarray, gremlins: Gremlins, margin: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`clearances` in two parts: each trajectory's smallest gap to the static regions,
-    and to the gremlins (their bodies at each step and the orbit discs at its end)."""
     n, steps, _ = points.shape
     valid = np.arange(steps)[None, :] < ends[:, None]                    # (n, steps)
     clearance = np.full(n, np.inf)
-    moving = np.full(n, np.inf)
     travel = float(np.sqrt(((points - (state.x, state.y)) ** 2).sum(axis=-1)).max())
     if len(static):  # only the regions the trajectories can reach
         static = static[np.hypot(static[:, 0] - state.x, static[:, 1] - state.y)
@@ -166,12 +155,12 @@ def clearance_parts(points: np.ndarray, ends: np.ndarray, state: RobotState,
         gaps = np.hypot(points[:, :, None, 0] - bodies[None, :, :, 0],
                         points[:, :, None, 1] - bodies[None, :, :, 1])
         worst = np.where(valid, (gaps - (homes[:, 2] - GREMLIN_TRAVEL)).min(axis=2), np.inf)
-        moving = np.minimum(moving, worst.min(axis=1))
+        clearance = np.minimum(clearance, worst.min(axis=1))
         end = points[np.arange(n), ends - 1]                            # (n, 2)
-        moving = np.minimum(moving, (np.hypot(end[:, None, 0] - homes[:, 0],
-                                              end[:, None, 1] - homes[:, 1])
-                                     - homes[:, 2]).min(axis=1))
-    return clearance, moving
+        clearance = np.minimum(clearance, (np.hypot(end[:, None, 0] - homes[:, 0],
+                                                    end[:, None, 1] - homes[:, 1])
+                                           - homes[:, 2]).min(axis=1))
+    return clearance
 
 
 def choose(plans: list[Plan], clearance: np.ndarray) -> Plan | None:

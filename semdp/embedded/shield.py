@@ -47,8 +47,8 @@ from semdp.embedded.lidar_bounds import BEARING_BOUNDS
 from semdp.embedded.moving_certificate import (
     Gremlins,
     Plan,
+    certified_plans,
     choose,
-    clearance_parts,
     clearances,
     plan_points,
     plans_for,
@@ -263,10 +263,8 @@ class SafetyShield(CostRegions):
                 plan = kept
             else:
                 plans = plans_for(model)
-                points, ends = plan_points(model, state, start, plans)
-                fixed, moving = clearance_parts(points, ends, state, static, gremlins,
-                                                self.margin)
-                scores = np.minimum(fixed, moving)
+                scores = certified_plans(model, state, start, plans, static, gremlins,
+                                         self.margin)
                 plan, rows = choose(plans, scores), gremlins.homes
             if plan is not None:
                 self._plan_rows = rows
@@ -280,13 +278,8 @@ class SafetyShield(CostRegions):
             if not (_distances(state, gremlins.homes) < gremlins.homes[:, 2]).any():
                 self._plan = None
                 return None  # outside every disc: the static rules' braking and escapes
-            # inside an orbit disc: among the plans that enter no static region (a wrong button
-            # is a cost for certain, a gremlin's disc only where the gremlin comes), the one that
-            # keeps farthest from the gremlins; else the one with the most clearance
-            self.stats.escaped += 1
-            clear = np.flatnonzero(fixed >= 0.0)
-            best = clear[np.argmax(moving[clear])] if len(clear) else np.argmax(scores)
-            plan = plans[int(best)]
+            self.stats.escaped += 1  # inside an orbit disc: the plan that keeps most clearance
+            plan = plans[int(np.argmax(scores))]
             self._plan_rows = None  # not certified: no rows to keep it against
         self._plan = plan.shorter()
         return np.array(plan.action) if plan.hold else model.backup(state)
