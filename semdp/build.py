@@ -6,11 +6,14 @@ through this module, never through the ``semdp-train`` app (:mod:`semdp.cli.trai
 from __future__ import annotations
 
 import math
+from typing import Any
 
-from hydra.utils import instantiate
+from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 
+from semdp.algos import speedups
 from semdp.algos.base import Algorithm
+from semdp.algos.on_policy import OnPolicyAlgorithm
 from semdp.common.seeding import seed_everything
 from semdp.envs import make_vec_env
 
@@ -76,11 +79,27 @@ def validate_config(cfg: DictConfig) -> None:
         raise ConfigError(f"{found} must be a finite number, got {OmegaConf.select(cfg, found)}")
 
 
+def algorithm_node(algo: DictConfig) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``algo`` resolved, and the seams built from its speed-up keys: an on-policy algorithm's
+    ``gradients`` / ``vectorization`` / ``parallel_critics`` become its ``kernel`` and
+    ``runners`` (:mod:`semdp.algos.speedups`); other algorithms' nodes pass unchanged."""
+    node = OmegaConf.to_container(algo, resolve=True)
+    assert isinstance(node, dict)
+    if not issubclass(get_class(str(node["_target_"])), OnPolicyAlgorithm):
+        return node, {}
+    keys = {key: node.pop(key) for key in speedups.KEYS if key in node}
+    return node, speedups.on_policy_seams(**keys)
+
+
 def build_algorithm(cfg: DictConfig) -> Algorithm:
-    """Seed, make the training and evaluation vector envs, and instantiate ``cfg.algo``."""
+    """Seed, make the training and evaluation vector envs, and instantiate ``cfg.algo`` with
+    its seams (:func:`algorithm_node`)."""
     seed_everything(int(cfg.seed))
+    node, seams = algorithm_node(cfg.algo)
     envs = make_vec_env(cfg.env, seed=int(cfg.seed))
     eval_n = max(1, min(int(cfg.env.num_envs), max(int(cfg.eval_episodes), 1)))
     eval_envs = make_vec_env(cfg.env, seed=int(cfg.seed) + 1, num_envs=eval_n, evaluation=True)
-    return instantiate(cfg.algo, envs=envs, eval_envs=eval_envs, seed=int(cfg.seed),
-                       _convert_="all")
+    # the objects are passed to the call, not merged into the config (which would turn a
+    # dataclass into a dict)
+    make = instantiate(node, _convert_="all", _partial_=True)
+    return make(envs=envs, eval_envs=eval_envs, seed=int(cfg.seed), **seams)

@@ -18,7 +18,9 @@ Run configs (:func:`upgrade_run_config`), in place:
 * the filter's ``lidar_bearing_bound: true / false`` (runs recorded before the aliasing bound)
   reads ``bin`` / ``none`` (:data:`RECORDED_BOUNDS`);
 * a wrapper or filter node without ``gremlins`` (runs recorded before the moving-gremlin
-  certificate) gets ``orbit``, the whole orbit discs it ran with.
+  certificate) gets ``orbit``, the whole orbit discs it ran with;
+* an on-policy algorithm node without ``gradients`` (runs recorded before the written-out
+  derivatives) gets ``autograd``, the derivatives it ran with.
 
 Checkpoints (:class:`Unpickler`): the planner's old pickles (:mod:`solvers.planner.legacy`),
 classes that moved (:data:`RENAMED_TARGETS`), objects pickled before one of their attributes
@@ -72,6 +74,9 @@ ADDED_ATTRIBUTES: dict[str, dict[str, object]] = {
     "semdp.embedded.wrapper.SafetyEmbeddedEnv": {"_buttons": None, "gremlins": "orbit"},
     "semdp.embedded.brake_kernel.ClearanceKernel": {"native": False},
 }
+#: On-policy algorithms' ``_target_``: a node without ``gradients`` ran autograd's derivatives.
+ON_POLICY_TARGETS: frozenset[str] = frozenset(
+    f"semdp.algos.{name}" for name in ("PPO", "PPOLag", "SPPPOLag", "TRPO", "TRPOLag", "CPO"))
 SEMDP_TARGET = "semdp.embedded.wrapper.SafetyEmbeddedEnv"
 SHIELD_TARGET = "semdp.embedded.shield.SafetyShield"
 
@@ -129,6 +134,8 @@ def upgrade_node(node: Any) -> None:
             node.lidar_bearing_bound = RECORDED_BOUNDS[node.lidar_bearing_bound]
         if target in (SEMDP_TARGET, SHIELD_TARGET) and "gremlins" not in node:
             node.gremlins = "orbit"
+        if target in ON_POLICY_TARGETS and "gradients" not in node:
+            node.gradients = "autograd"
         for key in node:
             if not (OmegaConf.is_missing(node, key) or OmegaConf.is_interpolation(node, key)):
                 upgrade_node(node[key])

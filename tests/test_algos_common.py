@@ -217,8 +217,7 @@ def test_rollout_bootstraps_time_outs_with_the_final_observation_and_not_termina
     from semdp.algos.ppo import PPO
 
     envs = make_vec_env({"id": "semdp/SpeedLimit-v0", "num_envs": 2}, seed=0)
-    algo = PPO(envs, None, seed=0, steps_per_epoch=500, obs_normalize=False,
-               vectorization="sync", parallel_critics=False)
+    algo = PPO(envs, None, seed=0, steps_per_epoch=500, obs_normalize=False)
     algo.critic_r = _TimeCritic()
     algo.critic_c = _TimeCritic()
     algo.collect_rollout()

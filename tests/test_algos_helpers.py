@@ -85,8 +85,7 @@ def test_split_rollout_equals_one_process_and_its_envs_come_back(local: int) -> 
 
     cfg = {"id": "sims/SafetyCarGoal2-v0", "num_envs": 3, "kwargs": {"max_episode_steps": 25}}
     torch.manual_seed(0)
-    algo = PPO(make_vec_env(cfg, seed=0), None, seed=1, steps_per_epoch=120,
-               vectorization="sync", parallel_critics=False)
+    algo = PPO(make_vec_env(cfg, seed=0), None, seed=1, steps_per_epoch=120)
     here = make_vec_env(cfg, seed=0)
     here.reset(seed=1)
     obs = algo._obs.copy()
@@ -262,6 +261,7 @@ def test_vector_env_subclasses_keep_their_own_step() -> None:
     stepper.step(_actions(np.random.default_rng(0), envs))
     assert Counting.calls == 1
     from semdp.algos.ppo import PPO
+    from semdp.algos.speedups import HelperRunners
 
     with pytest.raises(ValueError, match="SyncVectorEnv, got Counting"):
-        PPO(envs, None, seed=0, steps_per_epoch=64, vectorization="async")
+        PPO(envs, None, seed=0, steps_per_epoch=64, runners=HelperRunners("async", False))

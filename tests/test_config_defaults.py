@@ -17,9 +17,6 @@ from semdp.paths import CONF_DIR
 #: (target or a base class of it, key, value) -> why an option file chooses a value other than
 #: the Python default.
 EXCEPTIONS: dict[tuple[str, str, object], str] = {
-    ("semdp.algos.on_policy.OnPolicyAlgorithm", "gradients", "written"):
-        "the derivatives written out are an opt-in the config chooses, checked at construction "
-        "against the autograd definition (Python's default)",
     ("solvers.planner.LMSettings", "adaptive", True):
         "planner/lm_adaptive: the thesis' evaluation setting (App. B.2.3) beside fixed lambda",
     ("semdp.algos.lagrangian.Lagrange", "optimizer", "sgd"):
@@ -35,7 +32,18 @@ EXCEPTIONS: dict[tuple[str, str, object], str] = {
 
 def python_defaults(target: Any) -> dict[str, Any]:
     """The defaults of a callable's keyword arguments; a class's from its ``__init__`` and, for
-    arguments passed on through ``**kwargs``, from its bases'."""
+    arguments passed on through ``**kwargs``, from its bases'; an on-policy algorithm's with
+    those of the speed-up keys that :func:`semdp.algos.speedups.on_policy_seams` reads."""
+    from semdp.algos.on_policy import OnPolicyAlgorithm
+    from semdp.algos.speedups import on_policy_seams
+
+    if inspect.isclass(target) and issubclass(target, OnPolicyAlgorithm):
+        return {**python_defaults(on_policy_seams), **_signature_defaults(target)}
+    return _signature_defaults(target)
+
+
+def _signature_defaults(target: Any) -> dict[str, Any]:
+    """:func:`python_defaults` of the callable's own signature (and its bases')."""
     if not inspect.isclass(target):
         return {name: p.default for name, p in inspect.signature(target).parameters.items()
                 if p.default is not inspect.Parameter.empty}
@@ -120,6 +128,8 @@ def test_a_planted_mismatch_is_found() -> None:
         ".problem solvers.planner.ProblemSettings.clearance: config 0.6, Python 0.5",
         ".backend solvers.planner.LMSettings.native: config False, Python True",
     ]
+    ppo = {"_target_": "semdp.algos.PPOLag", "vectorization": "sync", "gradients": "written"}
+    assert mismatches(ppo) == [" semdp.algos.PPOLag.vectorization: config 'sync', Python 'auto'"]
     shield = {"_target_": "semdp.embedded.shield.SafetyShield", "kernel": "compiled"}
     assert mismatches(shield) == [" semdp.embedded.shield.SafetyShield.kernel: config "
                                   "'compiled', Python 'native'"]

@@ -284,3 +284,21 @@ def test_layer_checker_flags_a_planted_upward_import(tmp_path: Path) -> None:
         "app.core.loop (layer 1) imports app.tools.cli (layer 2)",
         "lib.geometry (layer 0) imports app.core.model (layer 1)",
     ]
+
+
+#: The on-policy algorithms' files: their speed-ups are handed in (semdp.algos.speedups).
+ON_POLICY_FILES: tuple[str, ...] = tuple(f"semdp.algos.{m}" for m in (
+    "on_policy", "ppo", "trpo", "trpo_lag", "cpo", "sp_ppo_lag", "lagrangian", "pid_lagrange",
+    "gae", "rollout", "critic_regression", "base"))
+
+
+def test_the_on_policy_algorithms_import_no_speed_up() -> None:
+    """The kernels and helper processes reach an algorithm through its ``kernel`` and
+    ``runners`` arguments only: the file a reader opens is the plain path."""
+    graph = import_graph()
+    assert set(ON_POLICY_FILES) <= set(graph)
+    found = {m: sorted(t for t in graph[m]
+                       if t.startswith(("semdp.algos.kernels", "semdp.algos.helpers",
+                                        "semdp.algos.speedups")))
+             for m in ON_POLICY_FILES}
+    assert not any(found.values()), found

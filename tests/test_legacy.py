@@ -102,6 +102,16 @@ def test_a_config_recorded_with_a_boolean_bound_reads_bin() -> None:
     assert instantiate(legacy.upgrade_run_config(cfg).shield).lidar_bearing_bound == "bin"
 
 
+def test_an_on_policy_config_recorded_before_the_written_kernel_reads_autograd() -> None:
+    """Such a run ran autograd's derivatives; today's config default is ``written``."""
+    old = OmegaConf.create({"algo": {"_target_": "semdp.algos.PPOLag", "vectorization": "auto"},
+                            "sac": {"_target_": "semdp.algos.SAC"}})
+    upgraded = legacy.upgrade_run_config(old)
+    assert upgraded.algo.gradients == "autograd" and "gradients" not in upgraded.sac
+    today = OmegaConf.create({"algo": {"_target_": "semdp.algos.CPO", "gradients": "written"}})
+    assert legacy.upgrade_run_config(today).algo.gradients == "written"
+
+
 def test_a_blob_pickled_inside_a_checkpoint_is_read_the_same_way() -> None:
     """A rollout helper pickles its sub-envs into the checkpoint as ``pickle.loads(blob)``: the
     blob's old objects are upgraded too."""

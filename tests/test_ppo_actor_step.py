@@ -39,8 +39,7 @@ def test_written_step_equals_the_autograd_step_of_ppos_loss(
     envs = make_vec_env({"id": "sims/SafetyPointGoal1-v0", "num_envs": 1}, seed=0)
     ppo = PPO(envs, None, seed=0, steps_per_epoch=64, actor_lr=3e-3, clip_range=0.2,
               ent_coef=ent, max_grad_norm=max_norm, hidden_sizes=hidden, activation=activation,
-              log_std_init=-0.3, vectorization="sync", parallel_critics=False,
-              gradients="autograd")
+              log_std_init=-0.3)
     actor = ppo.actor
     torch.manual_seed(0)
     obs, actions = torch.randn(64, ppo.obs_dim), torch.randn(64, ppo.act_dim)

@@ -45,10 +45,10 @@ def test_the_snippet_with_every_helper_and_two_torch_threads(tmp_path: Path) -> 
     code = _snippet().replace(
         "from semdp.algos import PPOLag\n",
         "import torch\ntorch.set_num_threads(2)\ntorch.ones(256, 256) @ torch.ones(256, 256)\n"
-        "from semdp.algos import PPOLag\n").replace(
+        "from semdp.algos import PPOLag\nfrom semdp.algos.speedups import HelperRunners\n").replace(
         "seed=0, steps_per_epoch=4000,",
-        "seed=0, steps_per_epoch=4000, vectorization='async', parallel_critics=True,")
-    assert "vectorization='async'" in code
+        "seed=0, steps_per_epoch=4000, runners=HelperRunners('async', True),")
+    assert "HelperRunners('async', True)" in code
     done = _run(code, tmp_path)
     assert done.returncode == 0, done.stderr[-3000:]
     rows = list(csv.DictReader((tmp_path / "runs/ppo_lag_point_goal1/progress.csv").open()))

@@ -5,7 +5,7 @@ Hierarchy (at most two levels below the shared bases): ``OnPolicyAlgorithm -> PP
 SPPPOLag``, ``OnPolicyAlgorithm -> TRPO -> TRPOLag / CPO``, ``Algorithm -> SAC``. Everything else
 is composition: :mod:`semdp.algos.lagrangian`, :mod:`semdp.algos.gae`, the speed-ups behind
 their seams: derivative kernels (:mod:`semdp.algos.kernels`) and helper processes
-(:mod:`semdp.algos.helpers`), ...
+(:mod:`semdp.algos.helpers`), handed to the on-policy algorithms by :mod:`semdp.algos.speedups`, ...
 """
 
 from semdp.algos.base import Algorithm

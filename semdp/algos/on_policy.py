@@ -13,12 +13,11 @@ An epoch, in the order the subclasses' ``train_epoch`` runs it:
 5. **critics** -- :meth:`~OnPolicyAlgorithm.update_critics`: minibatch regression of V_r and V_c
    on their GAE returns (:mod:`semdp.algos.critic_regression`).
 
-Two seams chosen by constructor arguments (``conf/algo/*.yaml``) swap in speed-ups without
-changing the plain path: ``gradients`` picks the update kernel (:class:`Autograd` here, or the
-written-out derivatives of :mod:`semdp.algos.kernels`) and ``vectorization`` /
-``parallel_critics`` the rollout collector and the critic runner (this process, or the helper
-processes of :mod:`semdp.algos.helpers`); ``"sync"`` / ``false`` / ``"autograd"`` is the plain
-path throughout.
+Two seams take speed-ups handed in by the caller, and this file imports none of them: the
+update ``kernel`` (:class:`Autograd`, the plain path, unless one is given) and the ``runners``,
+a factory of the rollout collector and the critic runner (this process unless one is given).
+:mod:`semdp.algos.speedups` builds both from the config keys ``algo.gradients``,
+``algo.vectorization`` and ``algo.parallel_critics`` (:func:`semdp.build.build_algorithm`).
 """
 
 from __future__ import annotations
@@ -38,16 +37,14 @@ from semdp.algos import critic_regression
 from semdp.algos.base import Algorithm
 from semdp.algos.critic_regression import CriticTargets
 from semdp.algos.gae import RolloutBatch, RolloutBuffer
-from semdp.algos.helpers.modes import with_helpers
-from semdp.algos.kernels.written import WrittenDerivatives
 from semdp.algos.rollout import LocalCollector, RolloutPart, noise_for
 from semdp.common.networks import GaussianActor, ValueCritic
 from semdp.common.normalization import RunningNormalizer
 from semdp.common.optim import FlatAdam
 
-VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
-#: ``gradients=``: derivatives written out where the networks allow it, or autograd throughout.
-GRADIENTS: tuple[str, ...] = ("written", "autograd")
+#: The ``runners`` seam: (envs, policy, owner, regress, local critics) -> (collector, critic
+#: runner); ``policy`` is (actor, normaliser, action scaling), ``owner`` the algorithm.
+Runners = Callable[..., tuple[Any, Any]]
 
 
 class Autograd:
@@ -114,13 +111,12 @@ class OnPolicyAlgorithm(Algorithm):
         max_grad_norm: gradient-norm clip (``None`` = off).
         obs_normalize: running observation normalisation on/off.
         obs_clip: clip of normalised observations.
-        vectorization: ``"sync"`` (the envs step here), ``"async"`` (3/5 of them in a helper
-            process) or ``"auto"`` (:mod:`semdp.algos.helpers.modes`).
-        parallel_critics: regress the critics in a helper process during the actor update
-            (``True``/``False``/``"auto"``).
-        gradients: the update kernel: ``"autograd"`` (the losses as defined here and in the
-            algorithm's file) or the opt-in ``"written"`` (:mod:`semdp.algos.kernels.written`, the
-            presets' choice), checked at construction against those losses.
+        kernel: the update kernel; None: :class:`Autograd` (the losses as defined here and in
+            the algorithm's file). A kernel with derivatives written out
+            (:mod:`semdp.algos.speedups`, ``algo.gradients=written``) is checked at construction
+            against those losses.
+        runners: the factory of the rollout collector and the critic runner (:data:`Runners`);
+            None: the envs step and the critics regress in this process.
     """
 
     #: ``rollout_helper``/``critic_helper``: 1 where the epoch used that helper.
@@ -147,22 +143,13 @@ class OnPolicyAlgorithm(Algorithm):
         max_grad_norm: float | None = 0.5,
         obs_normalize: bool = True,
         obs_clip: float = 5.0,
-        vectorization: str = "auto",
-        parallel_critics: bool | str = "auto",
-        gradients: str = "autograd",
+        kernel: Any = None,
+        runners: Runners | None = None,
     ) -> None:
         super().__init__(envs, eval_envs, seed, steps_per_epoch)
-        if gradients not in GRADIENTS:
-            raise ValueError(f"gradients must be one of {list(GRADIENTS)}, got {gradients!r}")
         for name, v in (("critic_iters", critic_iters), ("critic_minibatches", critic_minibatches)):
             if v < 1:
                 raise ValueError(f"{name} must be >= 1, got {v}")
-        if vectorization not in VECTORIZATION_MODES:
-            raise ValueError(f"vectorization must be one of {list(VECTORIZATION_MODES)}, "
-                             f"got {vectorization!r}")
-        if parallel_critics not in (True, False, "auto"):
-            raise ValueError(f"parallel_critics must be true, false or 'auto', "
-                             f"got {parallel_critics!r}")
         self.gamma, self.gae_lambda = gamma, gae_lambda
         self.gamma_c, self.gae_lambda_c = gamma_c, gae_lambda_c
         self.critic_iters, self.critic_minibatches = critic_iters, critic_minibatches
@@ -178,18 +165,16 @@ class OnPolicyAlgorithm(Algorithm):
         self.buffer = RolloutBuffer(self.n_steps, self.num_envs, self.obs_dim, self.act_dim)
         self.last_ep_cost: float | None = None
         self.last_ep_length: float | None = None
-        # the seams: update kernel (semdp.algos.kernels); rollout collector and critic runner
-        # (semdp.algos.helpers)
-        self.kernel: Any = WrittenDerivatives() if gradients == "written" else Autograd()
+        # the seams (semdp.algos.speedups): update kernel; rollout collector and critic runner
+        self.kernel: Any = Autograd() if kernel is None else kernel
         self.kernel.check_critics(self.critic_r, self.critic_c, self.critic_optimizer, critic_l2,
                                   critic_regression.critic_loss, self.obs_dim)
         self.regress = functools.partial(critic_regression.regress_critics, kernel=self.kernel)
         policy = (self.actor, self.normalizer, self.to_env_action)
         self.collector: Any = LocalCollector(*policy)
         self.critics: Any = LocalCritics(self.update_critics)
-        if vectorization != "sync" or parallel_critics is not False:
-            self.collector, self.critics = with_helpers(
-                vectorization, parallel_critics, envs, policy, self, self.regress, self.critics)
+        if runners is not None:
+            self.collector, self.critics = runners(envs, policy, self, self.regress, self.critics)
 
     @property
     def envs_in_helper(self) -> bool:
