@@ -63,6 +63,9 @@ def validate_config(cfg: DictConfig) -> None:
         integer(key, 1)
     for key in ("eval_every", "eval_episodes", "final_eval_episodes", "checkpoint_every", "seed"):
         integer(key, 0)
+    if int(cfg.eval_every) > 0 and int(cfg.eval_episodes) < 1:
+        raise ConfigError(f"eval_episodes must be >= 1 while eval_every > 0 (eval_every=0 turns "
+                          f"the periodic evaluation off), got {cfg.eval_episodes}")
     if "eval_workers" in cfg:  # absent in older runs' configs
         integer("eval_workers", 1)
     if not cfg.env.get("id"):

@@ -38,6 +38,7 @@ TRAIN = [  # budget=ci: a case that wrongly passed validation would finish in se
     "seed=-1 budget=ci", "cost_limit=inf budget=ci", "cost_limit=-1 budget=ci",
     "cost_limit=abc budget=ci", "algo.gamma=nan budget=ci", "algo.gamma=abc budget=ci",
     "algo.hidden_sizes=[] budget=ci", "algo.hidden_sizes=[0] budget=ci",
+    "eval_episodes=0 budget=ci",
     "algo.hidden_sizes=abc budget=ci", "eval_every=-1 budget=ci", "env.num_envs=0 budget=ci",
     "torch_threads=0 budget=ci", "algo=nope", "env=nope", "foo=1", "algo.nope=1",
     "resume=/nonexistent/run", "-m seed=0,1 foo=1", "experiment=semdp total_steps=-1",
