@@ -214,6 +214,23 @@ def test_a_point_leaves_the_button_it_pressed_by_the_exit_not_by_plans() -> None
     assert stats["cost_steps_total"] == 0
 
 
+def test_a_point_inside_an_orbit_disc_commits_to_one_best_effort_plan() -> None:
+    """Episode 9627 of the button regressions (PointButton1, goal-seeking subgoals, evaluation
+    wrapper) under the moving certificate: the Point finds itself inside a gremlin's orbit disc
+    with no plan certified. The plan with the largest clearance, chosen afresh at every step,
+    alternated between driving on and reversing as the LiDAR's candidates came and went; the
+    Point rocked in place for 45 steps until the gremlin came round (7 cost steps,
+    ``cost_gremlins``; checked with the commitment patched out). Kept one step shorter unless
+    another plan clears more by the margin, the best-effort plan takes it out: no cost."""
+    from semdp.benchmarks.safety import build_semdp_env, make_policy
+    from semdp.evaluation.safety_eval import evaluate_safety
+
+    env = build_semdp_env("point", "Button1", "eval", ("env.gremlins=moving",))
+    stats = evaluate_safety(env, make_policy("goal", env, 9627), 1, seed=9627)
+    assert stats["escape_rate"] > 0  # the best-effort plans ran
+    assert stats["cost_steps_total"] == 0
+
+
 def test_a_command_the_certificate_keeps_is_not_counted_as_replaced() -> None:
     """The SEMDP counts a low-level command as replaced when the filter returns another object
     (``info["shield_interventions"]``, the shield % of the safety table). A Mass crossing an

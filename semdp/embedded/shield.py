@@ -279,10 +279,25 @@ class SafetyShield(CostRegions):
                 self._plan = None
                 return None  # outside every disc: the static rules' braking and escapes
             self.stats.escaped += 1  # inside an orbit disc: the plan that keeps most clearance
-            plan = plans[int(np.argmax(scores))]
+            plan = self._best_effort(model, state, plans, scores, kept, static, gremlins)
             self._plan_rows = None  # not certified: no rows to keep it against
         self._plan = plan.shorter()
         return np.array(plan.action) if plan.hold else model.backup(state)
+
+    def _best_effort(self, model: RobotModel, state: RobotState, plans: list[Plan],
+                     scores: np.ndarray, kept: Plan | None, static: np.ndarray,
+                     gremlins: Gremlins) -> Plan:
+        """Inside an orbit disc with no plan certified: the plan with the largest clearance,
+        except that the best-effort plan of the last step, one step shorter, is kept unless
+        another one clears more by the filter's margin. Chosen afresh at every step, the best
+        plan alternated between driving on and reversing as the LiDAR's candidates came and
+        went, and the robot rocked in place until the gremlin came round."""
+        best = int(np.argmax(scores))
+        if kept is not None and kept.hold > 0 and self._plan_rows is None:
+            own = certified_plans(model, state, None, [kept], static, gremlins, self.margin)[0]
+            if own >= scores[best] - self.margin:
+                return kept
+        return plans[best]
 
     def _kept_rows(self, model: RobotModel, state: RobotState, start: np.ndarray | None,
                    kept: Plan, static: np.ndarray, gremlins: Gremlins) -> np.ndarray | None:
