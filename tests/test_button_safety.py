@@ -383,6 +383,27 @@ def _plans_by_hand(model: object, state: object, options: list[np.ndarray],
     return plans
 
 
+@pytest.mark.parametrize("robot", ["point", "car", "mass"])
+def test_the_exit_plans_are_the_models_steps(robot: str) -> None:
+    """Row ``i * EXIT_STEPS + j - 1`` of the exit's poses holds option ``i`` for ``j`` steps,
+    then brakes: each pose equals the model's ``step`` by hand, bit for bit."""
+    from semdp.embedded.exit_planning import EXIT_STEPS, _hold_then_brake
+    from semdp.embedded.robot_models import RobotState, robot_model
+
+    model = robot_model(robot)
+    state = RobotState(0.1, -0.2, 0.3, -0.4, 1.0, 0.5)
+    options = [model.backup(state), *model.escapes]
+    poses = _hold_then_brake(model, state, options)
+    assert poses.shape == (len(options) * EXIT_STEPS, EXIT_STEPS, 3)
+    for i, action in enumerate(options):
+        for hold in (1, 4, EXIT_STEPS):
+            s, by_hand = state, []
+            for k in range(EXIT_STEPS):
+                s = model.step(s, action if k < hold else model.backup(s))
+                by_hand.append((s.x, s.y, s.yaw))
+            np.testing.assert_array_equal(poses[i * EXIT_STEPS + hold - 1], np.array(by_hand))
+
+
 def test_when_every_way_out_enters_a_region_the_exit_enters_least() -> None:
     """A Point sliding west at 0.5 m/s inside an orbit disc (centre 0.3 m east), a hazard's
     region 0.03 m ahead: every option's hold enters it by more than the margin. The exit takes

@@ -38,6 +38,7 @@ def test_plan_rollouts_are_the_models_steps(robot: str, first: tuple | None) -> 
     holds = rng.integers(0, 8, 12)
     first_action = None if first is None else np.array(first)
     points = rollout(model, start, first_action, actions, holds, 15)
+    poses = rollout(model, start, first_action, actions, holds, 15, with_yaw=True)
     for i in range(12):
         s, by_hand = start, []
         for k in range(15):
@@ -47,8 +48,9 @@ def test_plan_rollouts_are_the_models_steps(robot: str, first: tuple | None) -> 
             else:
                 a = actions[i] if held < holds[i] else model.backup(s)
             s = model.step(s, a)
-            by_hand.append((s.x, s.y))
-        np.testing.assert_array_equal(points[i], np.array(by_hand))
+            by_hand.append((s.x, s.y, s.yaw))
+        np.testing.assert_array_equal(poses[i], np.array(by_hand))
+        np.testing.assert_array_equal(points[i], np.array(by_hand)[:, :2])
 
 
 def test_the_offsets_on_arrays_are_the_gremlin_law() -> None:

@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from semdp.embedded.plan_rollouts import rollout
 from semdp.embedded.robot_models import RobotModel, RobotState
 from solvers.planner.geometry import point_distances
 
@@ -117,18 +118,11 @@ def _hold_then_brake(model: RobotModel, state: RobotState, options: list[np.ndar
                      ) -> np.ndarray:
     """Poses ``(len(options) * EXIT_STEPS, EXIT_STEPS, 3)`` (x, y, yaw after each step):
     row ``i * EXIT_STEPS + j - 1`` holds option ``i`` for ``j`` steps, then brakes
-    (``model.backup``) for the remaining ``EXIT_STEPS - j``."""
-    poses = np.empty((len(options), EXIT_STEPS, EXIT_STEPS, 3))
-    for i, a in enumerate(options):
-        held = state
-        for j in range(EXIT_STEPS):
-            held = model.step(held, a)
-            poses[i, j:, j] = (held.x, held.y, held.yaw)  # plans holding longer than j
-            s = held
-            for t in range(j + 1, EXIT_STEPS):  # the plan holding j + 1 steps brakes after
-                s = model.step(s, model.backup(s))
-                poses[i, j, t] = (s.x, s.y, s.yaw)
-    return poses.reshape(len(options) * EXIT_STEPS, EXIT_STEPS, 3)
+    (``model.backup``) for the remaining ``EXIT_STEPS - j``: the model's steps, rolled out
+    together (:func:`~semdp.embedded.plan_rollouts.rollout`)."""
+    actions = np.repeat(np.asarray(options, dtype=np.float64).reshape(-1, 2), EXIT_STEPS, axis=0)
+    holds = np.tile(np.arange(1, EXIT_STEPS + 1), len(options))
+    return rollout(model, state, None, actions, holds, EXIT_STEPS, with_yaw=True)
 
 
 def _static_depth_now(model: RobotModel, state: RobotState, regions: np.ndarray,

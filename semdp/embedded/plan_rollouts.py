@@ -16,17 +16,19 @@ from semdp.embedded.robot_models import CarModel, MassModel, PointModel, RobotMo
 
 
 def rollout(model: RobotModel, state: RobotState, first: np.ndarray | None,
-            actions: np.ndarray, holds: np.ndarray, steps: int) -> np.ndarray:
+            actions: np.ndarray, holds: np.ndarray, steps: int, with_yaw: bool = False
+            ) -> np.ndarray:
     """Root positions ``(n, steps, 2)`` after each env step of ``n`` plans from ``state``:
     ``first`` (if given) for one step, then ``actions[i]`` for ``holds[i]`` steps, then the
-    backup until ``steps`` steps have passed."""
+    backup until ``steps`` steps have passed. ``with_yaw``: poses ``(n, steps, 3)``, the
+    heading after each step too."""
     actions = np.asarray(actions, dtype=np.float64).reshape(-1, 2)
     holds = np.asarray(holds).reshape(-1)
     n = len(actions)
     x, y, vx, vy, yaw, w = (np.full(n, float(v)) for v in (
         state.x, state.y, state.vx, state.vy, state.yaw, state.w))
     law = _LAWS[type(model)](model, actions)
-    out = np.empty((n, steps, 2))
+    out = np.empty((n, steps, 3 if with_yaw else 2))
     offset = 0 if first is None else 1
     for k in range(steps):
         if k < offset:
@@ -35,6 +37,8 @@ def rollout(model: RobotModel, state: RobotState, first: np.ndarray | None,
             command = law.held_or_backup(k - offset < holds, x, y, vx, vy, yaw, w)
         x, y, vx, vy, yaw, w = law.step(command, x, y, vx, vy, yaw, w)
         out[:, k, 0], out[:, k, 1] = x, y
+        if with_yaw:
+            out[:, k, 2] = yaw
     return out
 
 
