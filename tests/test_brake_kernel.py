@@ -56,10 +56,11 @@ def test_the_shield_rejects_an_unknown_kernel() -> None:
         SafetyShield(kernel="fortran")
 
 
-def _filtered_run(robot: str, kernel: str, steps: int = 250) -> tuple[np.ndarray, tuple]:
+def _filtered_run(robot: str, kernel: str, steps: int = 250, gremlins: str = "orbit"
+                  ) -> tuple[np.ndarray, tuple]:
     """Random full-throttle actions on Button1 through the filter: positions and its counts
-    (the gremlins' orbit discs static: the compiled kernel is the static certificate's)."""
-    shield = SafetyShield(kernel=kernel, gremlins="orbit")
+    (``orbit``: the braking kernel's static certificate; ``moving``: the plan rollouts' too)."""
+    shield = SafetyShield(kernel=kernel, gremlins=gremlins)
     env = ShieldedEnv(gym.make(f"sims/Safety{robot.capitalize()}Button1-v0"), shield)
     env.reset(seed=3)
     rng = np.random.default_rng(11)
@@ -71,11 +72,22 @@ def _filtered_run(robot: str, kernel: str, steps: int = 250) -> tuple[np.ndarray
     return np.array(positions), (stats.steps, stats.checked, stats.braked, stats.escaped)
 
 
+@pytest.mark.parametrize("gremlins", ["orbit", "moving"])
 @pytest.mark.parametrize("kernel", ["compiled", "native"])
 @pytest.mark.parametrize("robot", ["point", "car"])
-def test_the_filter_takes_the_same_decisions_with_every_kernel(robot: str, kernel: str) -> None:
-    compiled, compiled_stats = _filtered_run(robot, kernel)
-    plain, plain_stats = _filtered_run(robot, "python")
+def test_the_filter_takes_the_same_decisions_with_every_kernel(
+        robot: str, kernel: str, gremlins: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    from semdp.embedded import shield as shield_module
+
+    scored = []
+    certified_plans = shield_module.certified_plans
+    monkeypatch.setattr(shield_module, "certified_plans",
+                        lambda *args: scored.append(1) or certified_plans(*args))
+    compiled, compiled_stats = _filtered_run(robot, kernel, gremlins=gremlins)
+    plain, plain_stats = _filtered_run(robot, "python", gremlins=gremlins)
     assert np.array_equal(compiled, plain)
     assert compiled_stats == plain_stats
-    assert compiled_stats[2] + compiled_stats[3] > 0  # the filter acted in this run
+    if gremlins == "orbit":
+        assert compiled_stats[2] + compiled_stats[3] > 0  # the filter acted in this run
+    else:
+        assert len(scored) > 0  # the plans were rolled out in this run

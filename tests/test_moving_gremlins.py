@@ -28,17 +28,19 @@ FORWARD = {"point": [1.0, 0.0], "car": [1.0, 1.0], "mass": [1.0, 0.0]}
 CORNERS = [(1.6, 1.6), (-1.6, 1.6), (1.6, -1.6), (-1.6, -1.6)]
 
 
+@pytest.mark.parametrize("kernel", ["python", "compiled", "native"])
 @pytest.mark.parametrize("robot", ROBOTS)
 @pytest.mark.parametrize("first", [None, (0.7, -0.3)])
-def test_plan_rollouts_are_the_models_steps(robot: str, first: tuple | None) -> None:
+def test_plan_rollouts_are_the_models_steps(robot: str, first: tuple | None, kernel: str) -> None:
+    """Every kernel's rollout equals ``model.step`` (and the backup) by hand, bit for bit."""
     model = robot_model(robot)
     start = RobotState(0.1, -0.2, 0.3, -0.4, 1.0, 0.5)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1.2, 1.2, (12, 2))
     holds = rng.integers(0, 8, 12)
     first_action = None if first is None else np.array(first)
-    points = rollout(model, start, first_action, actions, holds, 15)
-    poses = rollout(model, start, first_action, actions, holds, 15, with_yaw=True)
+    points = rollout(model, start, first_action, actions, holds, 15, kernel=kernel)
+    poses = rollout(model, start, first_action, actions, holds, 15, with_yaw=True, kernel=kernel)
     for i in range(12):
         s, by_hand = start, []
         for k in range(15):
@@ -69,11 +71,11 @@ def test_plans_are_every_escape_at_every_hold() -> None:
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
-def test_one_plan_stepped_by_the_model_scores_as_in_the_set(robot: str) -> None:
-    """The kept plan alone (rolled out by ``model.step`` and ``model.brake_path``) is certified
-    exactly when it is among all plans (rolled out on arrays): the same trajectory under the
-    same certificate (the clearance's value may differ: each checks the static regions its own
-    trajectories reach)."""
+def test_one_plan_alone_scores_as_in_the_set(robot: str) -> None:
+    """The kept plan alone (one rollout, as the filter tries it first) is certified exactly
+    when it is among all plans: the same trajectory under the same certificate (the
+    clearance's value may differ: each checks the static regions its own trajectories
+    reach)."""
     model = robot_model(robot)
     state = RobotState(-0.9, 0.1, 0.4, 0.0, 0.2, 0.0)
     static = np.array([[0.2, 0.9, 0.35], [-1.6, -0.4, 0.3]])

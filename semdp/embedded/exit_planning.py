@@ -49,7 +49,7 @@ class ExitPlan(NamedTuple):
 
 def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
                 regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray,
-                outside: np.ndarray, margin: float) -> ExitPlan:
+                outside: np.ndarray, margin: float, kernel: str = "native") -> ExitPlan:
     """Inside a region (a button just pressed, an orbit disc, a LiDAR region lit around the
     robot): the plan (an option held for 1 to :data:`EXIT_STEPS` steps, then braking) that
     gets farthest out of the static regions it is in (every kind but a gremlin's orbit disc),
@@ -88,8 +88,9 @@ def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
         contact, orbit, outside: per row, whether its cost is a contact with the robot's
             outline, whether it is a gremlin's orbit disc, whether the robot is outside it now.
         margin: the filter's margin (m).
+        kernel: how the plans are rolled out (:func:`~semdp.embedded.plan_rollouts.rollout`).
     """
-    poses = _hold_then_brake(model, state, options)
+    poses = _hold_then_brake(model, state, options, kernel)
     n_plans = len(poses)
     flat = poses.reshape(-1, 3)
     gaps = point_distances(flat[:, :2], regions[:, :2]) - regions[:, 2]
@@ -114,15 +115,15 @@ def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
     return ExitPlan(best // EXIT_STEPS, best % EXIT_STEPS + 1)
 
 
-def _hold_then_brake(model: RobotModel, state: RobotState, options: list[np.ndarray]
-                     ) -> np.ndarray:
+def _hold_then_brake(model: RobotModel, state: RobotState, options: list[np.ndarray],
+                     kernel: str = "native") -> np.ndarray:
     """Poses ``(len(options) * EXIT_STEPS, EXIT_STEPS, 3)`` (x, y, yaw after each step):
     row ``i * EXIT_STEPS + j - 1`` holds option ``i`` for ``j`` steps, then brakes
     (``model.backup``) for the remaining ``EXIT_STEPS - j``: the model's steps, rolled out
     together (:func:`~semdp.embedded.plan_rollouts.rollout`)."""
     actions = np.repeat(np.asarray(options, dtype=np.float64).reshape(-1, 2), EXIT_STEPS, axis=0)
     holds = np.tile(np.arange(1, EXIT_STEPS + 1), len(options))
-    return rollout(model, state, None, actions, holds, EXIT_STEPS, with_yaw=True)
+    return rollout(model, state, None, actions, holds, EXIT_STEPS, with_yaw=True, kernel=kernel)
 
 
 def _static_depth_now(model: RobotModel, state: RobotState, regions: np.ndarray,

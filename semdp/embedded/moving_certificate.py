@@ -89,43 +89,24 @@ def plans_for(model: RobotModel) -> list[Plan]:
 
 def certified_plans(model: RobotModel, state: RobotState, first: np.ndarray | None,
                     plans: list[Plan], static: np.ndarray, gremlins: Gremlins,
-                    margin: float) -> np.ndarray:
+                    margin: float, kernel: str = "native") -> np.ndarray:
     """Each plan's clearance (m; ``>= 0``: certified, module docstring), after ``first`` if
     given, until it is at rest (its hold, then the model's braking horizon). ``static``: rows
-    ``[x, y, R]`` of the regions that do not move. One plan is rolled out by the model's own
-    ``step`` and ``brake_path`` (cheaper than arrays for one), several at once by
-    :func:`~semdp.embedded.plan_rollouts.rollout` (the same numbers)."""
-    points, ends = plan_points(model, state, first, plans)
+    ``[x, y, R]`` of the regions that do not move. The plans are rolled out by
+    :func:`~semdp.embedded.plan_rollouts.rollout` with ``kernel``."""
+    points, ends = plan_points(model, state, first, plans, kernel)
     return clearances(points, ends, state, static, gremlins, margin)
 
 
 def plan_points(model: RobotModel, state: RobotState, first: np.ndarray | None,
-                plans: list[Plan]) -> tuple[np.ndarray, np.ndarray]:
+                plans: list[Plan], kernel: str = "native") -> tuple[np.ndarray, np.ndarray]:
     """``(points, ends)``: the root after each step of each plan (after ``first`` if given),
     ``(n, steps, 2)``, plan ``i`` at rest after its first ``ends[i]`` steps (its hold, then the
     model's braking horizon); :func:`clearances` scores them."""
     holds = np.array([p.hold for p in plans])
     ends = (first is not None) + holds + model.horizon
-    if len(plans) == 1:
-        return _stepped(model, state, first, plans[0])[None], ends
     return rollout(model, state, first, np.array([p.action for p in plans]), holds,
-                   int(ends.max())), ends
-
-
-def _stepped(model: RobotModel, state: RobotState, first: np.ndarray | None,
-             plan: Plan) -> np.ndarray:
-    """``(steps, 2)``: the root after each step of ``plan`` (after ``first``) until it is at
-    rest, by ``model.step`` and ``model.brake_path``."""
-    s = state
-    held = []
-    if first is not None:
-        s = model.step(s, first)
-        held.append((s.x, s.y))
-    action = np.array(plan.action)
-    for _ in range(plan.hold):
-        s = model.step(s, action)
-        held.append((s.x, s.y))
-    return np.concatenate([np.array(held).reshape(-1, 2), model.brake_path(s)])
+                   int(ends.max()), kernel=kernel), ends
 
 
 def clearances(points: np.ndarray, ends: np.ndarray, state: RobotState, static: np.ndarray,

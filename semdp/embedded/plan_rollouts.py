@@ -1,147 +1,133 @@
-"""Many short plans of one robot rolled out at once: each plan holds one action for some
-steps, then brakes (the models' ``backup``), optionally after a common first action.
+"""Short plans of one robot rolled out from one state: each plan holds one action for some
+steps, then brakes (the model's backup), optionally after a common first action.
 
-The same contact-free laws as :mod:`semdp.embedded.robot_models` (``step`` and ``backup``,
-substep by substep), on numpy arrays with one element per plan: the moving-gremlin
-certificate (:mod:`semdp.embedded.moving_certificate`) tries dozens of plans at every step
-it is needed. ``model.step`` stays the definition; tests/test_moving_gremlins.py checks each
-rollout against it plan by plan.
+The motion is the model's own law (:meth:`~semdp.embedded.robot_models.PointModel.advance`
+under :meth:`~semdp.embedded.robot_models.PointModel.command`, the backup's
+:meth:`~semdp.embedded.robot_models.PointModel.brake_command`), written once in
+:class:`~semdp.embedded.robot_models.Ops` arithmetic. ``kernel="python"`` steps it on floats,
+plan by plan; ``"compiled"`` traces it once with CasADi symbols into a function of the state,
+the held command, the hold and the first command, and ``"native"`` runs that function as C
+compiled once per machine (:mod:`solvers.native`). The traced expressions are the float path's,
+operation by operation (``fmin``/``fmax`` for ``min``/``max``, the same libm ``cos``/``sin``,
+model constants in products kept as parameters, the hold's switch a select), so every kernel
+gives the same numbers bit for bit (tests/test_moving_gremlins.py checks them against
+``model.step`` and each other). The moving-gremlin certificate
+(:mod:`semdp.embedded.moving_certificate`) and the exit from inside a region
+(:mod:`semdp.embedded.exit_planning`) roll out dozens of plans at every step they are needed.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
+import casadi as ca
 import numpy as np
 
-from semdp.embedded.robot_models import CarModel, MassModel, PointModel, RobotModel, RobotState
+from semdp.embedded.robot_models import FLOAT_OPS, Ops, RobotModel, RobotState
+from solvers.native import native_function
+
+#: ``kernel=`` of :func:`rollout` (the safety filter's ``kernel`` option).
+KERNELS: tuple[str, ...] = ("python", "compiled", "native")
 
 
 def rollout(model: RobotModel, state: RobotState, first: np.ndarray | None,
-            actions: np.ndarray, holds: np.ndarray, steps: int, with_yaw: bool = False
-            ) -> np.ndarray:
+            actions: np.ndarray, holds: np.ndarray, steps: int, with_yaw: bool = False,
+            kernel: str = "native") -> np.ndarray:
     """Root positions ``(n, steps, 2)`` after each env step of ``n`` plans from ``state``:
     ``first`` (if given) for one step, then ``actions[i]`` for ``holds[i]`` steps, then the
     backup until ``steps`` steps have passed. ``with_yaw``: poses ``(n, steps, 3)``, the
     heading after each step too."""
+    if kernel not in KERNELS:
+        raise ValueError(f"rollout kernel must be one of {KERNELS}, got {kernel!r}")
     actions = np.asarray(actions, dtype=np.float64).reshape(-1, 2)
     holds = np.asarray(holds).reshape(-1)
-    n = len(actions)
-    x, y, vx, vy, yaw, w = (np.full(n, float(v)) for v in (
-        state.x, state.y, state.vx, state.vy, state.yaw, state.w))
-    law = _LAWS[type(model)](model, actions)
-    out = np.empty((n, steps, 3 if with_yaw else 2))
-    offset = 0 if first is None else 1
+    commands = [model.command(a) for a in actions]
+    start = (state.x, state.y, state.vx, state.vy, state.yaw, state.w)
+    opening = None if first is None else model.command(np.asarray(first, dtype=np.float64))
+    if kernel == "python":
+        out = np.array([_poses(model, start, opening, c, int(h), steps, FLOAT_OPS)
+                        for c, h in zip(commands, holds, strict=True)], dtype=np.float64)
+    else:
+        out = _kernel(model, steps, opening is not None, kernel == "native")(
+            start, opening, commands, holds)
+    return out.reshape(len(actions), steps, 3)[:, :, :3 if with_yaw else 2]
+
+
+def _poses(model: RobotModel, state: tuple[Any, ...], opening: tuple[Any, Any] | None,
+           held: tuple[Any, Any], hold: Any, steps: int, ops: Ops) -> list[Any]:
+    """``x, y, yaw`` after each of ``steps`` env steps of one plan, flat, in ``ops``'
+    arithmetic; ``hold`` a number, or a symbol with ``ops.select`` choosing by it."""
+    out: list[Any] = []
+    offset = 0 if opening is None else 1
     for k in range(steps):
         if k < offset:
-            command = law.command_of(np.broadcast_to(np.asarray(first, dtype=np.float64), (n, 2)))
+            assert opening is not None
+            command = opening
+        elif isinstance(hold, int | np.integer):
+            command = held if k - offset < hold else model.brake_command(*state, ops)
         else:
-            command = law.held_or_backup(k - offset < holds, x, y, vx, vy, yaw, w)
-        x, y, vx, vy, yaw, w = law.step(command, x, y, vx, vy, yaw, w)
-        out[:, k, 0], out[:, k, 1] = x, y
-        if with_yaw:
-            out[:, k, 2] = yaw
+            brake = model.brake_command(*state, ops)
+            command = (ca.if_else(hold > k - offset, held[0], brake[0]),
+                       ca.if_else(hold > k - offset, held[1], brake[1]))
+        state = model.advance(*state, command, ops)
+        out += [state[0], state[1], state[4]]
     return out
 
 
-class _PointLaw:
-    """:class:`PointModel`'s ``step`` and ``backup`` on arrays."""
+class _RolloutKernel:
+    """One plan's poses as a CasADi function of ``(state, held command, hold, first command,
+    constants)``, evaluated plan by plan through zero-copy buffers."""
 
-    def __init__(self, model: PointModel, actions: np.ndarray) -> None:
-        self.m = model
-        self.held = self.command_of(actions)
+    def __init__(self, model: RobotModel, steps: int, opening: bool, native: bool) -> None:
+        symbols: list[ca.SX] = []
+        values: list[float] = []
 
-    def command_of(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        m = self.m
-        force = m.gear * np.clip(actions[:, 0], -m.force_limit, m.force_limit)
-        rate = np.copysign(np.interp(np.abs(actions[:, 1]), m.yaw_actions, m.yaw_rates),
-                           actions[:, 1])
-        return force * m.gain_per_force, rate
+        def const(value: float) -> ca.SX:
+            symbols.append(ca.SX.sym(f"c{len(symbols)}"))
+            values.append(float(value))
+            return symbols[-1]
 
-    def held_or_backup(self, holding: np.ndarray, x: np.ndarray, y: np.ndarray,
-                       vx: np.ndarray, vy: np.ndarray, yaw: np.ndarray, w: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
-        m = self.m
-        forward = vx * np.cos(yaw) + vy * np.sin(yaw)
-        a0 = np.minimum(np.maximum(-0.2 * forward, -1.0), 1.0)               # the backup's
-        gain = m.gear * np.minimum(np.maximum(a0, -m.force_limit), m.force_limit) \
-            * m.gain_per_force
-        return np.where(holding, self.held[0], gain), np.where(holding, self.held[1],
-                                                               m._brake_rate)
+        ops = Ops(ca.cos, ca.sin, lambda v, lo, hi: ca.fmin(ca.fmax(v, lo), hi), const)
+        state, held, hold, first = (ca.SX.sym(n, d) for n, d in (("s", 6), ("a", 2),
+                                                                  ("k", 1), ("f", 2)))
+        poses = _poses(model, tuple(state[i] for i in range(6)),
+                       (first[0], first[1]) if opening else None, (held[0], held[1]), hold,
+                       steps, ops)
+        function = ca.Function(f"plan_rollout_{type(model).__name__}_{steps}_{int(opening)}",
+                               [state, held, hold, first, ca.vertcat(*symbols)],
+                               [ca.vertcat(*poses)])
+        if native:
+            function = native_function(function) or function
+        self.args = [np.zeros(6), np.zeros(2), np.zeros(1), np.zeros(2),
+                     np.array(values, dtype=np.float64)]
+        self.out = np.zeros(3 * steps)
+        self.buffer, self.evaluate = function.buffer()
+        for i, arg in enumerate(self.args):
+            self.buffer.set_arg(i, memoryview(arg))
+        self.buffer.set_res(0, memoryview(self.out))
 
-    def step(self, command: tuple[np.ndarray, np.ndarray], x: np.ndarray, y: np.ndarray,
-             vx: np.ndarray, vy: np.ndarray, yaw: np.ndarray, w: np.ndarray
-             ) -> tuple[np.ndarray, ...]:
-        m = self.m
-        gain, rate = command
-        for _ in range(m.substeps):
-            c, sn = np.cos(yaw), np.sin(yaw)
-            x = x + vx * m.h
-            y = y + vy * m.h
-            yaw = yaw + w * m.h
-            vx = gain * c + vx * m.e
-            vy = gain * sn + vy * m.e
-            w = rate
-        return x, y, vx, vy, yaw, w
-
-
-class _CarLaw:
-    """:class:`CarModel`'s ``step`` and ``backup`` (zero torques) on arrays."""
-
-    def __init__(self, model: CarModel, actions: np.ndarray) -> None:
-        self.m = model
-        self.held = self.command_of(actions)
-        self.brake = self.command_of(np.zeros((len(actions), 2)))
-
-    def command_of(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        steady = np.array([self.m.steady_state(float(a0), float(a1)) for a0, a1 in actions])
-        return steady[:, 0], steady[:, 1]
-
-    def held_or_backup(self, holding: np.ndarray, *state: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
-        return (np.where(holding, self.held[0], self.brake[0]),
-                np.where(holding, self.held[1], self.brake[1]))
-
-    def step(self, command: tuple[np.ndarray, np.ndarray], x: np.ndarray, y: np.ndarray,
-             vx: np.ndarray, vy: np.ndarray, yaw: np.ndarray, w: np.ndarray
-             ) -> tuple[np.ndarray, ...]:
-        m = self.m
-        speed, rate = command
-        for _ in range(m.substeps):
-            c, sn = np.cos(yaw), np.sin(yaw)
-            x = x + vx * m.h
-            y = y + vy * m.h
-            yaw = yaw + w * m.h
-            forward = vx * sn - vy * c
-            lateral = (vx * c + vy * sn) * m.lateral_decay
-            forward = speed + (forward - speed) * m.e
-            vx = forward * sn + lateral * c
-            vy = -forward * c + lateral * sn
-            w = w + (rate - w) * (1.0 - m.e)
-        return x, y, vx, vy, yaw, w
+    def __call__(self, state: tuple[float, ...], opening: tuple[float, float] | None,
+                 commands: list[tuple[float, float]], holds: np.ndarray) -> np.ndarray:
+        s, held, hold, first, _ = self.args
+        s[:] = state
+        if opening is not None:
+            first[:] = opening
+        out = np.empty((len(commands), len(self.out)))
+        for i, (command, k) in enumerate(zip(commands, holds, strict=True)):
+            held[:] = command
+            hold[0] = k
+            self.evaluate()
+            out[i] = self.out
+        return out
 
 
-class _MassLaw:
-    """:class:`MassModel`'s ``step`` and ``backup`` (zero velocity) on arrays."""
-
-    def __init__(self, model: MassModel, actions: np.ndarray) -> None:
-        self.m = model
-        self.held = self.command_of(actions)
-
-    def command_of(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        velocity = np.clip(actions, -1.0, 1.0) * self.m.scale
-        return velocity[:, 0], velocity[:, 1]
-
-    def held_or_backup(self, holding: np.ndarray, *state: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
-        return np.where(holding, self.held[0], 0.0), np.where(holding, self.held[1], 0.0)
-
-    def step(self, command: tuple[np.ndarray, np.ndarray], x: np.ndarray, y: np.ndarray,
-             vx: np.ndarray, vy: np.ndarray, yaw: np.ndarray, w: np.ndarray
-             ) -> tuple[np.ndarray, ...]:
-        m = self.m
-        cvx, cvy = command
-        x = x + (vx + cvx * (m.substeps - 1)) * m.h
-        y = y + (vy + cvy * (m.substeps - 1)) * m.h
-        return x, y, cvx, cvy, yaw, np.zeros_like(w)
+_KERNELS: dict[tuple[type, int, bool, bool], _RolloutKernel] = {}
 
 
-_LAWS = {PointModel: _PointLaw, CarModel: _CarLaw, MassModel: _MassLaw}
+def _kernel(model: RobotModel, steps: int, opening: bool, native: bool) -> _RolloutKernel:
+    """The kernel of ``model``'s robot class for these rollouts, built on first use and shared
+    by the filters of this process (a model's constants are its robot class's)."""
+    key = (type(model), steps, opening, native)
+    if key not in _KERNELS:
+        _KERNELS[key] = _RolloutKernel(model, steps, opening, native)
+    return _KERNELS[key]

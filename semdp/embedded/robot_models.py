@@ -126,7 +126,25 @@ class RobotModel(Protocol):
     escapes: np.ndarray
 
     def step(self, s: RobotState, action: np.ndarray) -> RobotState:
-        """The state one env step later under ``action`` (no contacts)."""
+        """The state one env step later under ``action`` (no contacts): :meth:`advance` under
+        :meth:`command`."""
+        ...
+
+    def command(self, action: np.ndarray) -> tuple[float, float]:
+        """What the actuator law needs of ``action`` (the Point's force gain and yaw rate,
+        the Car's steady speed and yaw rate, the Mass's velocity)."""
+        ...
+
+    def brake_command(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                      ops: Ops) -> tuple[Any, Any]:
+        """:meth:`command` of the backup action in this state, in ``ops``' arithmetic."""
+        ...
+
+    def advance(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                command: tuple[Any, Any], ops: Ops) -> tuple[Any, ...]:
+        """The state ``(x, y, vx, vy, yaw, w)`` one env step later under ``command``: the
+        robot's motion law, written once, in ``ops``' arithmetic (floats for :meth:`step`,
+        CasADi symbols for the compiled kernels)."""
         ...
 
     def backup(self, s: RobotState) -> np.ndarray:
@@ -162,20 +180,37 @@ class PointModel:
         self.escapes = np.array([(a0, a1) for a0 in (-1.0, 0.0, 1.0) for a1 in (-1.0, 0.0, 1.0)])
 
     def step(self, s: RobotState, action: np.ndarray) -> RobotState:
-        force = self.gear * min(max(float(action[0]), -self.force_limit), self.force_limit)
-        gain = force * self.gain_per_force
+        return RobotState(*self.advance(s.x, s.y, s.vx, s.vy, s.yaw, s.w, self.command(action),
+                                        FLOAT_OPS))
+
+    def command(self, action: np.ndarray) -> tuple[float, float]:
         a1 = float(action[1])
-        rate = math.copysign(interp_clamped(self.yaw_actions, self.yaw_rates, abs(a1)), a1)
-        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
+        return (self._gain(float(action[0]), FLOAT_OPS),
+                math.copysign(interp_clamped(self.yaw_actions, self.yaw_rates, abs(a1)), a1))
+
+    def _gain(self, a0: Any, ops: Ops) -> Any:
+        """The force gain of thrust command ``a0``."""
+        return ops.const(self.gear) * ops.clip(a0, -self.force_limit, self.force_limit) * \
+            self.gain_per_force
+
+    def brake_command(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                      ops: Ops) -> tuple[Any, Any]:
+        forward = vx * ops.cos(yaw) + vy * ops.sin(yaw)
+        return self._gain(ops.clip(-0.2 * forward, -1.0, 1.0), ops), self._brake_rate
+
+    def advance(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                command: tuple[Any, Any], ops: Ops) -> tuple[Any, ...]:
+        gain, rate = command
+        h, e = self.h, self.e
         for _ in range(self.substeps):
-            c, sn = math.cos(yaw), math.sin(yaw)
-            x += vx * self.h
-            y += vy * self.h
-            yaw += w * self.h
-            vx = gain * c + vx * self.e
-            vy = gain * sn + vy * self.e
+            c, sn = ops.cos(yaw), ops.sin(yaw)
+            x += vx * h
+            y += vy * h
+            yaw += w * h
+            vx = gain * c + vx * e
+            vy = gain * sn + vy * e
             w = rate
-        return RobotState(x, y, vx, vy, yaw, w)
+        return x, y, vx, vy, yaw, w
 
     def backup(self, s: RobotState) -> np.ndarray:
         forward = s.vx * math.cos(s.yaw) + s.vy * math.sin(s.yaw)
@@ -189,22 +224,10 @@ class PointModel:
                      ops: Ops) -> Iterator[tuple[Any, Any]]:
         """The root positions of :meth:`brake_path`, one per env step, in ``ops``' arithmetic
         (floats, or CasADi symbols for :mod:`semdp.embedded.brake_kernel`)."""
-        h, e = self.h, self.e
-        rate = self._brake_rate
+        state = (x, y, vx, vy, yaw, w)
         for _ in range(self.horizon):
-            forward = vx * ops.cos(yaw) + vy * ops.sin(yaw)
-            a0 = ops.clip(-0.2 * forward, -1.0, 1.0)
-            gain = ops.const(self.gear) * ops.clip(a0, -self.force_limit, self.force_limit) * \
-                self.gain_per_force
-            for _ in range(self.substeps):
-                c, sn = ops.cos(yaw), ops.sin(yaw)
-                x += vx * h
-                y += vy * h
-                yaw += w * h
-                vx = gain * c + vx * e
-                vy = gain * sn + vy * e
-                w = rate
-            yield x, y
+            state = self.advance(*state, self.brake_command(*state, ops), ops)
+            yield state[0], state[1]
 
     def stopping_reach(self, s: RobotState) -> float:
         return math.hypot(s.vx, s.vy) * self.tau + 0.05
@@ -226,20 +249,34 @@ class CarModel:
         self.escapes = np.array([(a0, a1) for a0 in (-1.0, 0.0, 1.0) for a1 in (-1.0, 0.0, 1.0)])
 
     def step(self, s: RobotState, action: np.ndarray) -> RobotState:
+        return RobotState(*self.advance(s.x, s.y, s.vx, s.vy, s.yaw, s.w, self.command(action),
+                                        FLOAT_OPS))
+
+    def command(self, action: np.ndarray) -> tuple[float, float]:
         speed, rate = self.steady_state(float(action[0]), float(action[1]))
-        x, y, vx, vy, yaw, w = s.x, s.y, s.vx, s.vy, s.yaw, s.w
+        return speed, rate
+
+    def brake_command(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                      ops: Ops) -> tuple[Any, Any]:
+        speed, rate = self._brake_steady
+        return speed, rate
+
+    def advance(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                command: tuple[Any, Any], ops: Ops) -> tuple[Any, ...]:
+        speed, rate = command
+        h, e, lateral_decay = self.h, self.e, self.lateral_decay
         for _ in range(self.substeps):
-            c, sn = math.cos(yaw), math.sin(yaw)
-            x += vx * self.h
-            y += vy * self.h
-            yaw += w * self.h
+            c, sn = ops.cos(yaw), ops.sin(yaw)
+            x += vx * h
+            y += vy * h
+            yaw += w * h
             forward = vx * sn - vy * c  # driving direction: body -y
-            lateral = (vx * c + vy * sn) * self.lateral_decay
-            forward = speed + (forward - speed) * self.e
+            lateral = (vx * c + vy * sn) * lateral_decay
+            forward = speed + (forward - speed) * e
             vx = forward * sn + lateral * c
             vy = -forward * c + lateral * sn
-            w = w + (rate - w) * (1.0 - self.e)
-        return RobotState(x, y, vx, vy, yaw, w)
+            w = w + (rate - w) * (1.0 - e)
+        return x, y, vx, vy, yaw, w
 
     def backup(self, s: RobotState) -> np.ndarray:
         return np.zeros(2)
@@ -255,21 +292,10 @@ class CarModel:
                      ops: Ops) -> Iterator[tuple[Any, Any]]:
         """The root positions of :meth:`brake_path`, one per env step, in ``ops``' arithmetic
         (floats, or CasADi symbols for :mod:`semdp.embedded.brake_kernel`)."""
-        speed, rate = self._brake_steady
-        h, e, lateral_decay = self.h, self.e, self.lateral_decay
+        state = (x, y, vx, vy, yaw, w)
         for _ in range(self.horizon):
-            for _ in range(self.substeps):
-                c, sn = ops.cos(yaw), ops.sin(yaw)
-                x += vx * h
-                y += vy * h
-                yaw += w * h
-                forward = vx * sn - vy * c
-                lateral = (vx * c + vy * sn) * lateral_decay
-                forward = speed + (forward - speed) * e
-                vx = forward * sn + lateral * c
-                vy = -forward * c + lateral * sn
-                w = w + (rate - w) * (1.0 - e)
-            yield x, y
+            state = self.advance(*state, self.brake_command(*state, ops), ops)
+            yield state[0], state[1]
 
 
 class MassModel:
@@ -287,12 +313,24 @@ class MassModel:
                                   np.zeros((1, 2))])
 
     def step(self, s: RobotState, action: np.ndarray) -> RobotState:
-        vx = min(max(float(action[0]), -1.0), 1.0) * self.scale
-        vy = min(max(float(action[1]), -1.0), 1.0) * self.scale
+        return RobotState(*self.advance(s.x, s.y, s.vx, s.vy, s.yaw, s.w, self.command(action),
+                                        FLOAT_OPS))
+
+    def command(self, action: np.ndarray) -> tuple[float, float]:
+        return (min(max(float(action[0]), -1.0), 1.0) * self.scale,
+                min(max(float(action[1]), -1.0), 1.0) * self.scale)
+
+    def brake_command(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                      ops: Ops) -> tuple[Any, Any]:
+        return 0.0, 0.0
+
+    def advance(self, x: Any, y: Any, vx: Any, vy: Any, yaw: Any, w: Any,
+                command: tuple[Any, Any], ops: Ops) -> tuple[Any, ...]:
+        cvx, cvy = command
         # the first substep still moves with the previous velocity
-        x = s.x + (s.vx + vx * (self.substeps - 1)) * self.h
-        y = s.y + (s.vy + vy * (self.substeps - 1)) * self.h
-        return RobotState(x, y, vx, vy, s.yaw, 0.0)
+        x = x + (vx + cvx * (self.substeps - 1)) * self.h
+        y = y + (vy + cvy * (self.substeps - 1)) * self.h
+        return x, y, cvx, cvy, yaw, 0.0
 
     def backup(self, s: RobotState) -> np.ndarray:
         return np.zeros(2)

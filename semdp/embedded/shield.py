@@ -95,7 +95,9 @@ class SafetyShield(CostRegions):
             default: the braking manoeuvre as one CasADi function,
             :mod:`semdp.embedded.brake_kernel`, compiled to C, equal to the plain path bit for
             bit), ``"compiled"`` (that function in CasADi's virtual machine, equal too) or
-            ``"python"`` (the plain path, the reference).
+            ``"python"`` (the plain path, the reference); the same choice for the plan
+            rollouts of the exit and the moving certificate
+            (:mod:`semdp.embedded.plan_rollouts`).
         gremlins: :data:`~semdp.embedded.perception.GREMLIN_MODELS`: ``"orbit"`` (the
             default: the whole disc is a static region) or ``"moving"`` (opt-in: a gremlin's
             orbit disc may be crossed under a plan certified against the gremlin's position at
@@ -264,7 +266,7 @@ class SafetyShield(CostRegions):
             else:
                 plans = plans_for(model)
                 scores = certified_plans(model, state, start, plans, static, gremlins,
-                                         self.margin)
+                                         self.margin, self.kernel)
                 plan, rows = choose(plans, scores), gremlins.homes
             if plan is not None:
                 self._plan_rows = rows
@@ -294,7 +296,8 @@ class SafetyShield(CostRegions):
         went, and the robot rocked in place until the gremlin came round."""
         best = int(np.argmax(scores))
         if kept is not None and kept.hold > 0 and self._plan_rows is None:
-            own = certified_plans(model, state, None, [kept], static, gremlins, self.margin)[0]
+            own = certified_plans(model, state, None, [kept], static, gremlins, self.margin,
+                                  self.kernel)[0]
             if own >= scores[best] - self.margin:
                 return kept
         return plans[best]
@@ -308,7 +311,7 @@ class SafetyShield(CostRegions):
         clear of those gremlins at every later step; the LiDAR's candidates (every lit bin) come
         and go as the robot turns, and a plan certified against the last frame's alone was
         lost in the middle of an orbit disc."""
-        points, ends = plan_points(model, state, start, [kept])
+        points, ends = plan_points(model, state, start, [kept], self.kernel)
 
         def certified(homes: np.ndarray) -> bool:
             rows = Gremlins(homes, gremlins.time, gremlins.dt)
@@ -349,7 +352,7 @@ class SafetyShield(CostRegions):
         outside = _distances(state, regions) >= regions[:, 2]
         if scores[best] < 0.0 and (contact & ~outside).any():
             return exit_option(model, state, options, regions, contact, orbit, outside,
-                               self.margin).option
+                               self.margin, self.kernel).option
         if scores[best] >= 0.0 or not outside.any() or outside.all():
             return best
         kept = [i for i, a in enumerate(options)
