@@ -18,6 +18,7 @@ gives the same numbers bit for bit (tests/test_moving_gremlins.py checks them ag
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import casadi as ca
@@ -28,6 +29,8 @@ from solvers.native import native_function
 
 #: ``kernel=`` of :func:`rollout` (the safety filter's ``kernel`` option).
 KERNELS: tuple[str, ...] = ("python", "compiled", "native")
+#: The compiled kernels' lengths are multiples of this many steps.
+STEP_BLOCK = 32
 
 
 def rollout(model: RobotModel, state: RobotState, first: np.ndarray | None,
@@ -49,7 +52,7 @@ def rollout(model: RobotModel, state: RobotState, first: np.ndarray | None,
                         for c, h in zip(commands, holds, strict=True)], dtype=np.float64)
     else:
         out = _kernel(model, steps, opening is not None, kernel == "native")(
-            start, opening, commands, holds)
+            start, opening, commands, holds)[:, :3 * steps]
     return out.reshape(len(actions), steps, 3)[:, :, :3 if with_yaw else 2]
 
 
@@ -125,8 +128,12 @@ _KERNELS: dict[tuple[type, int, bool, bool], _RolloutKernel] = {}
 
 
 def _kernel(model: RobotModel, steps: int, opening: bool, native: bool) -> _RolloutKernel:
-    """The kernel of ``model``'s robot class for these rollouts, built on first use and shared
-    by the filters of this process (a model's constants are its robot class's)."""
+    """The kernel of ``model``'s robot class for rollouts of up to ``steps`` steps, built on
+    first use and shared by the filters of this process (a model's constants are its robot
+    class's). One kernel per :data:`STEP_BLOCK` steps: a rollout's first steps do not depend
+    on its later ones, so longer ones are cut, and a kept plan, one step shorter at each step,
+    needs no function of its own per length."""
+    steps = STEP_BLOCK * math.ceil(steps / STEP_BLOCK)
     key = (type(model), steps, opening, native)
     if key not in _KERNELS:
         _KERNELS[key] = _RolloutKernel(model, steps, opening, native)
