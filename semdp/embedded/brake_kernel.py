@@ -30,7 +30,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from semdp.embedded.robot_models import Ops, RobotState
+from semdp.embedded.robot_models import RobotState, symbolic_ops
 from solvers.native import native_function
 from solvers.planner.geometry import CASADI, length, point_offset
 
@@ -49,15 +49,7 @@ def _build(model: Any, slots: int) -> tuple[ca.Function, np.ndarray]:
     ``[x, y, R]``) and the values of its ``constants`` (the model's :attr:`Ops.const`)."""
     state = ca.SX.sym("s", 6)
     regions = ca.SX.sym("r", 3 * slots)
-    symbols: list[ca.SX] = []
-    values: list[float] = []
-
-    def const(value: float) -> ca.SX:
-        symbols.append(ca.SX.sym(f"c{len(symbols)}"))
-        values.append(float(value))
-        return symbols[-1]
-
-    ops = Ops(ca.cos, ca.sin, lambda v, lo, hi: ca.fmin(ca.fmax(v, lo), hi), const)
+    ops, symbols, values = symbolic_ops()
     x, y, vx, vy, yaw, w = (state[i] for i in range(6))
     points = [(x, y), *model.brake_points(x, y, vx, vy, yaw, w, ops)]
     gaps = []

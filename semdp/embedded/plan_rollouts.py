@@ -24,7 +24,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from semdp.embedded.robot_models import FLOAT_OPS, Ops, RobotModel, RobotState
+from semdp.embedded.robot_models import FLOAT_OPS, Ops, RobotModel, RobotState, symbolic_ops
 from solvers.native import native_function
 
 #: ``kernel=`` of :func:`rollout` (the safety filter's ``kernel`` option).
@@ -82,15 +82,7 @@ class _RolloutKernel:
     constants)``, evaluated plan by plan through zero-copy buffers."""
 
     def __init__(self, model: RobotModel, steps: int, opening: bool, native: bool) -> None:
-        symbols: list[ca.SX] = []
-        values: list[float] = []
-
-        def const(value: float) -> ca.SX:
-            symbols.append(ca.SX.sym(f"c{len(symbols)}"))
-            values.append(float(value))
-            return symbols[-1]
-
-        ops = Ops(ca.cos, ca.sin, lambda v, lo, hi: ca.fmin(ca.fmax(v, lo), hi), const)
+        ops, symbols, values = symbolic_ops()
         state, held, hold, first = (ca.SX.sym(n, d) for n, d in (("s", 6), ("a", 2),
                                                                   ("k", 1), ("f", 2)))
         poses = _poses(model, tuple(state[i] for i in range(6)),

@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+import casadi as ca
 import numpy as np
 import pymunk
 
@@ -40,6 +41,22 @@ class Ops:
 
 #: :class:`Ops` on Python floats.
 FLOAT_OPS = Ops(math.cos, math.sin, lambda v, lo, hi: min(max(v, lo), hi), lambda v: v)
+
+
+def symbolic_ops() -> tuple[Ops, list[ca.SX], list[float]]:
+    """:class:`Ops` on CasADi SX symbols, with the parameter symbols its ``const`` creates and
+    their values (both lists filled as expressions are traced; the traced function takes the
+    symbols as an input and is called with the values)."""
+    symbols: list[ca.SX] = []
+    values: list[float] = []
+
+    def const(value: float) -> ca.SX:
+        symbols.append(ca.SX.sym(f"c{len(symbols)}"))
+        values.append(float(value))
+        return symbols[-1]
+
+    return Ops(ca.cos, ca.sin, lambda v, lo, hi: ca.fmin(ca.fmax(v, lo), hi), const), symbols, \
+        values
 
 
 @dataclass
