@@ -235,6 +235,22 @@ def test_a_point_inside_an_orbit_disc_commits_to_one_best_effort_plan() -> None:
     assert stats["cost_steps_total"] == 0
 
 
+def test_a_car_does_not_keep_a_best_effort_plan_that_turns_it_in_place() -> None:
+    """Episode 20307 of ``semdp-bench safety`` (CarButton2, subgoals aimed at the nearest
+    hazard, evaluation wrapper) under the moving certificate: inside an orbit disc with no plan
+    certified, the best-effort plan kept for as long as it lasted turned the Car in place for
+    40 steps until the gremlin came round (12 cost steps, ``cost_gremlins``; checked with the
+    bound on keeping it patched out). Chosen afresh after at most ``EXIT_STEPS`` steps: no
+    cost."""
+    from semdp.benchmarks.safety import build_semdp_env, make_policy
+    from semdp.evaluation.safety_eval import evaluate_safety
+
+    env = build_semdp_env("car", "Button2", "eval", ("env.gremlins=moving",))
+    stats = evaluate_safety(env, make_policy("adversarial", env, 20307), 1, seed=20307)
+    assert stats["escape_rate"] > 0
+    assert stats["cost_steps_total"] == 0
+
+
 def test_a_command_the_certificate_keeps_is_not_counted_as_replaced() -> None:
     """The SEMDP counts a low-level command as replaced when the filter returns another object
     (``info["shield_interventions"]``, the shield % of the safety table). A Mass crossing an

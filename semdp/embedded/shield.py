@@ -42,7 +42,7 @@ import numpy as np
 
 from semdp.embedded.brake_kernel import compiles, kernel_for
 from semdp.embedded.cost_regions import CONTACT_KINDS, CostRegions
-from semdp.embedded.exit_planning import exit_option
+from semdp.embedded.exit_planning import EXIT_STEPS, exit_option
 from semdp.embedded.lidar_bounds import BEARING_BOUNDS
 from semdp.embedded.moving_certificate import (
     Gremlins,
@@ -141,6 +141,7 @@ class SafetyShield(CostRegions):
         self.gremlins = gremlins
         self._plan: Plan | None = None
         self._plan_rows: np.ndarray | None = None
+        self._kept_for = 0  # steps the best-effort plan has been kept (_best_effort)
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
         self._radii: dict[str, float] = {}
@@ -158,7 +159,7 @@ class SafetyShield(CostRegions):
     def new_episode(self) -> None:
         """Forget the last episode's buttons and the moving-gremlin plan kept."""
         super().new_episode()
-        self._plan, self._plan_rows = None, None
+        self._plan, self._plan_rows, self._kept_for = None, None, 0
 
     def reset_stats(self) -> None:
         """Zero the counters."""
@@ -291,15 +292,20 @@ class SafetyShield(CostRegions):
                      gremlins: Gremlins) -> Plan:
         """Inside an orbit disc with no plan certified: the plan with the largest clearance,
         except that the best-effort plan of the last step, one step shorter, is kept unless
-        another one clears more by the filter's margin. Chosen afresh at every step, the best
-        plan alternated between driving on and reversing as the LiDAR's candidates came and
-        went, and the robot rocked in place until the gremlin came round."""
+        another one clears more by the filter's margin, for at most
+        :data:`~semdp.embedded.exit_planning.EXIT_STEPS` steps. Chosen afresh at every step, the
+        best plan alternated between driving on and reversing as the LiDAR's candidates came
+        and went, and a Point rocked in place until the gremlin came round; kept for as long as
+        it lasted (up to 50 steps), a Car turned in place inside the disc until it was hit."""
         best = int(np.argmax(scores))
-        if kept is not None and kept.hold > 0 and self._plan_rows is None:
+        if (kept is not None and kept.hold > 0 and self._plan_rows is None
+                and self._kept_for < EXIT_STEPS):
             own = certified_plans(model, state, None, [kept], static, gremlins, self.margin,
                                   self.kernel)[0]
             if own >= scores[best] - self.margin:
+                self._kept_for += 1
                 return kept
+        self._kept_for = 0
         return plans[best]
 
     def _kept_rows(self, model: RobotModel, state: RobotState, start: np.ndarray | None,
