@@ -98,11 +98,10 @@ class SafetyShield(CostRegions):
             ``"python"`` (the plain path, the reference); the same choice for the plan
             rollouts of the exit and the moving certificate
             (:mod:`semdp.embedded.plan_rollouts`).
-        gremlins: :data:`~semdp.embedded.perception.GREMLIN_MODELS`: ``"orbit"`` (the
-            default: the whole disc is a static region) or ``"moving"`` (opt-in: a gremlin's
-            orbit disc may be crossed under a plan certified against the gremlin's position at
-            each step, :mod:`semdp.embedded.moving_certificate`; not yet cost-free on the
-            safety bench).
+        gremlins: :data:`~semdp.embedded.perception.GREMLIN_MODELS`: ``"moving"`` (the
+            default: a gremlin's orbit disc may be crossed under a plan certified against the
+            gremlin's position at each step, :mod:`semdp.embedded.moving_certificate`) or
+            ``"orbit"`` (the whole disc is a static region).
     """
 
     #: Given a :class:`FilterRecord` after every :meth:`filter` call when set (diagnostics:
@@ -113,7 +112,7 @@ class SafetyShield(CostRegions):
     def __init__(self, margin: float = 0.05, perception: str = "lidar",
                  kinds: tuple[str, ...] | list[str] = OBSTACLE_KINDS,
                  lidar_bearing_bound: str = "aliasing", fallback: str = "escape",
-                 kernel: str = "native", gremlins: str = "orbit") -> None:
+                 kernel: str = "native", gremlins: str = "moving") -> None:
         if not margin >= 0:
             raise ValueError(f"shield margin must be >= 0, got {margin}")
         if perception not in PERCEPTION_MODES:

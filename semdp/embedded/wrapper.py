@@ -125,9 +125,9 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             every cost region, else brake or escape); None = the thesis' plain follower.
             ``info["shield_interventions"]`` counts the window's replaced actions.
         gremlins: how the planner sees a gremlin
-            (:data:`~semdp.embedded.perception.GREMLIN_MODELS`): ``"orbit"`` (the default: the
-            disc of its orbit) or ``"moving"`` (where it is now, for a filter with
-            ``gremlins="moving"``).
+            (:data:`~semdp.embedded.perception.GREMLIN_MODELS`): ``"moving"`` (the default:
+            where it is now, for a filter with ``gremlins="moving"``) or ``"orbit"`` (the disc
+            of its orbit).
 
     A :attr:`recorder`, when set, is given a :class:`LowLevelRecord` of every low-level step.
     """
@@ -153,7 +153,7 @@ class SafetyEmbeddedEnv(gym.Wrapper):
         draw_plan: bool = True,
         frame_every: int = 0,
         shield: SafetyShield | None = None,
-        gremlins: str = "orbit",
+        gremlins: str = "moving",
     ) -> None:
         super().__init__(env)
         if k < 1:
