@@ -102,7 +102,5 @@ def build_algorithm(cfg: DictConfig) -> Algorithm:
     envs = make_vec_env(cfg.env, seed=int(cfg.seed))
     eval_n = max(1, min(int(cfg.env.num_envs), max(int(cfg.eval_episodes), 1)))
     eval_envs = make_vec_env(cfg.env, seed=int(cfg.seed) + 1, num_envs=eval_n, evaluation=True)
-    # the objects are passed to the call, not merged into the config (which would turn a
-    # dataclass into a dict)
-    make = instantiate(node, _convert_="all", _partial_=True)
-    return make(envs=envs, eval_envs=eval_envs, seed=int(cfg.seed), **seams)
+    return instantiate(node, envs=envs, eval_envs=eval_envs, seed=int(cfg.seed), **seams,
+                       _convert_="all")

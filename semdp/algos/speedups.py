@@ -18,7 +18,6 @@ The defaults of :func:`on_policy_seams` are the config's.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -34,13 +33,16 @@ GRADIENTS: tuple[str, ...] = ("written", "autograd")
 VECTORIZATION_MODES: tuple[str, ...] = ("sync", "async", "auto")
 
 
-@dataclass(frozen=True)
 class HelperRunners:
     """The ``runners`` seam of :class:`~semdp.algos.on_policy.OnPolicyAlgorithm` with helper
-    processes (:func:`semdp.algos.helpers.modes.with_helpers`)."""
+    processes (:func:`semdp.algos.helpers.modes.with_helpers`). A plain class, not a
+    dataclass: Hydra's ``instantiate`` would turn a dataclass argument into a config node."""
 
-    vectorization: str
-    parallel_critics: bool | str
+    def __init__(self, vectorization: str, parallel_critics: bool | str) -> None:
+        self.vectorization, self.parallel_critics = vectorization, parallel_critics
+
+    def __repr__(self) -> str:
+        return f"HelperRunners({self.vectorization!r}, {self.parallel_critics!r})"
 
     def __call__(self, envs: gym.vector.VectorEnv,
                  policy: tuple[Any, Any, Callable[[Any], np.ndarray]], owner: CriticOwner,
