@@ -59,7 +59,8 @@ def rollout(model: RobotModel, state: RobotState, first: np.ndarray | None,
 def _poses(model: RobotModel, state: tuple[Any, ...], opening: tuple[Any, Any] | None,
            held: tuple[Any, Any], hold: Any, steps: int, ops: Ops) -> list[Any]:
     """``x, y, yaw`` after each of ``steps`` env steps of one plan, flat, in ``ops``'
-    arithmetic; ``hold`` a number, or a symbol with ``ops.select`` choosing by it."""
+    arithmetic; ``hold`` a number, or a CasADi symbol (the held or the braking command then
+    chosen per step by ``if_else``)."""
     out: list[Any] = []
     offset = 0 if opening is None else 1
     for k in range(steps):

@@ -24,10 +24,11 @@ from sims.safety_gym.robots import CarRobot, MassRobot, PointRobot, Robot, inter
 
 @dataclass(frozen=True)
 class Ops:
-    """The arithmetic a braking manoeuvre is written in (:meth:`PointModel.brake_points`):
-    ``math`` on floats for the filter's plain path, CasADi's on symbols for its compiled
-    kernel (:mod:`semdp.embedded.brake_kernel`). The same expressions in the same order, so
-    both give the same numbers."""
+    """The arithmetic each robot's motion law is written in (:meth:`PointModel.advance`,
+    :meth:`PointModel.brake_command`): ``math`` on floats for the filter's plain path,
+    CasADi's on symbols for its compiled kernels (:mod:`semdp.embedded.brake_kernel`,
+    :mod:`semdp.embedded.plan_rollouts`). The same expressions in the same order, so both
+    give the same numbers."""
 
     cos: Callable[[Any], Any]
     sin: Callable[[Any], Any]
