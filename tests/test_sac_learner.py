@@ -32,7 +32,7 @@ from semdp.algos.sac.replay import FIELDS, SharedReplayBuffer
 from semdp.algos.sac.twin_q import FusedTwinQ
 from semdp.cli.train import build_algorithm, run
 from semdp.common.logger import TIMING_COLUMNS
-from semdp.common.networks import SquashedGaussianActor, TwinQCritic
+from semdp.common.networks import SquashedGaussianActor, mlp
 from solvers.workers import HelperError
 
 #: The tiny SAC of tests/conftest.py with the round loop (16 env steps per round).
@@ -67,14 +67,16 @@ def hosts(monkeypatch: pytest.MonkeyPatch) -> list[ProcessLearner]:
     return made
 
 
-def test_fused_twin_q_is_the_twin_critic() -> None:
+def test_fused_twin_q_is_two_separate_networks() -> None:
+    """Oracle: Q1 and Q2 as two plain ReLU MLPs drawn in that order from the same seed."""
     torch.manual_seed(3)
     fused = FusedTwinQ(7, 2, (32, 16))
     torch.manual_seed(3)
-    twin = TwinQCritic(7, 2, (32, 16))
+    q1_net, q2_net = (mlp(9, (32, 16), 1, "relu") for _ in range(2))
     obs, act = torch.randn(9, 7), torch.randn(9, 2)
-    q1, q2 = twin(obs, act)
-    torch.testing.assert_close(fused(obs, act), torch.stack([q1, q2]), rtol=0, atol=1e-6)
+    x = torch.cat([obs, act], dim=-1)
+    expected = torch.stack([q1_net(x).squeeze(-1), q2_net(x).squeeze(-1)])
+    torch.testing.assert_close(fused(obs, act), expected, rtol=0, atol=1e-6)
     frozen = [p.detach() for p in fused.parameters()]
     assert not fused(obs, act, frozen).requires_grad
 
@@ -122,21 +124,31 @@ def test_sac_trains_layer_norm_critics_through_the_learner() -> None:
     assert learner.critic_target.layer_norm
 
 
-def test_the_actors_sample_is_its_forward_action_with_the_same_draw() -> None:
+def test_the_actors_one_sampler_draws_its_noise_like_normal_rsample() -> None:
+    """Oracle: ``torch.distributions.Normal(mean, std).rsample()`` from the same seed, squashed,
+    and its log-density with the tanh correction written out; the mode is tanh(mean)."""
     torch.manual_seed(0)
     actor = SquashedGaussianActor(7, 2, (16, 16))
     obs = torch.randn(5, 7) * 3.0
     with torch.inference_mode():
+        mean, raw = actor.head(obs)
+        std = (actor.LOG_STD_MIN + 0.5 * (actor.LOG_STD_MAX - actor.LOG_STD_MIN)
+               * (torch.tanh(raw) + 1.0)).exp()
         torch.manual_seed(11)
-        expected, _ = actor(obs)
+        u = torch.distributions.Normal(mean, std).rsample()
+        after_rsample = torch.rand(3)
+        torch.manual_seed(11)
+        action, log_prob = actor(obs)
         after_forward = torch.rand(3)
-        torch.manual_seed(11)
-        sampled = actor.sample(obs)
-        after_sample = torch.rand(3)
-    assert torch.equal(sampled, expected)
-    assert torch.equal(after_sample, after_forward)  # the generator advanced alike
+        mode, _ = actor(obs, deterministic=True)
+    assert torch.equal(action, torch.tanh(u))
+    assert torch.equal(after_forward, after_rsample)  # the generator advanced alike
+    expected = (torch.distributions.Normal(mean, std).log_prob(u)
+                - torch.log(1 - torch.tanh(u) ** 2)).sum(-1)
+    torch.testing.assert_close(log_prob, expected, rtol=1e-4, atol=1e-4)
+    assert torch.equal(mode, torch.tanh(mean))
     torch.manual_seed(12)
-    assert not torch.equal(actor.sample(obs), sampled)
+    assert not torch.equal(actor(obs)[0], action)
 
 
 @pytest.mark.parametrize(("policy_steps", "actor_steps"), [(0, 6), (1, 3), (3, 9)])

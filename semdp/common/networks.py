@@ -3,7 +3,7 @@
 On-policy: separate MLPs for the Gaussian actor (state-independent learnable ``log_std``), the
 reward critic and the cost critic, 64x64 tanh, orthogonal init (CleanRL gains: sqrt(2) hidden,
 0.01 actor head, 1.0 critic head). SAC: tanh-squashed Gaussian actor with ``log_std`` squashed
-into [-5, 2] and twin Q networks, 256x256 ReLU.
+into [-5, 2], 256x256 ReLU (its twin Q networks: :mod:`semdp.algos.sac.twin_q`).
 """
 
 from __future__ import annotations
@@ -124,36 +124,30 @@ class SquashedGaussianActor(nn.Module):
         super().__init__()
         self.net = mlp(obs_dim, hidden_sizes, 2 * act_dim, activation, out_gain=0.01)
 
-    def forward(
-        self, obs: torch.Tensor, deterministic: bool = False
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Sample (or take the mode of) the squashed policy: ``(action, log_prob)``."""
-        mean, raw_log_std = self.net(obs).chunk(2, dim=-1)
-        span = self.LOG_STD_MAX - self.LOG_STD_MIN
-        log_std = self.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
-        dist = Normal(mean, log_std.exp(), validate_args=False)
-        pre_tanh = mean if deterministic else dist.rsample()
-        action = torch.tanh(pre_tanh)
-        # log|d tanh(u)/du| = 2 (log 2 - u - softplus(-2u)), the numerically stable form.
-        correction = 2.0 * (math.log(2.0) - pre_tanh - nn.functional.softplus(-2.0 * pre_tanh))
-        log_prob = (dist.log_prob(pre_tanh) - correction).sum(-1)
-        return action, log_prob
-
-    def sample(self, obs: torch.Tensor) -> torch.Tensor:
-        """The action of :meth:`forward` without its log-probability: the same random draw and
-        the same floats, for collecting steps (half the operator calls)."""
+    def head(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The network's two halves: the pre-squash mean and the raw (unsquashed) log-std."""
         mean, raw_log_std = forward_mlp(self.net, obs).chunk(2, dim=-1)
-        span = self.LOG_STD_MAX - self.LOG_STD_MIN
-        log_std = self.LOG_STD_MIN + 0.5 * span * (torch.tanh(raw_log_std) + 1.0)
-        # Normal.rsample: loc + eps * scale, eps from normal_() on a fresh tensor
-        noise = torch.empty(mean.shape, dtype=mean.dtype, device=mean.device).normal_()
-        return torch.tanh(mean + noise * log_std.exp())
+        return mean, raw_log_std
+
+    def forward(
+        self, obs: torch.Tensor, deterministic: bool = False, noise: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(action, log_prob)`` of the squashed policy at ``obs``: the one sampler of this
+        actor (:meth:`reparameterised`), with standard-normal ``noise`` drawn from torch's
+        generator unless given, or none (the mode, ``tanh(mean)``) when ``deterministic``."""
+        mean, raw_log_std = self.head(obs)
+        if deterministic:
+            noise = torch.zeros_like(mean)
+        elif noise is None:  # Normal.rsample's draw: normal_() on a fresh tensor
+            noise = torch.empty(mean.shape, dtype=mean.dtype, device=mean.device).normal_()
+        sample = self.reparameterised(mean, raw_log_std, noise)
+        return sample.action, sample.log_prob
 
     @classmethod
     def reparameterised(
         cls, mean: torch.Tensor, raw_log_std: torch.Tensor, noise: torch.Tensor,
     ) -> SquashedSample:
-        """:meth:`forward`'s sample written with its standard-normal ``noise``: ``u = mean +
+        """The squashed sample with its standard-normal ``noise``: ``u = mean +
         std * noise``, ``log N(u) = -noise^2 / 2 - log std - log(2 pi) / 2`` (the SAC
         learner's form, one formula for its autograd and its written gradients).
 
@@ -183,23 +177,3 @@ class SquashedSample(NamedTuple):
     tanh_raw: torch.Tensor
     std: torch.Tensor
     neg2_pre_tanh: torch.Tensor
-
-
-class TwinQCritic(nn.Module):
-    """Two independent Q(s, a) networks (clipped double Q)."""
-
-    def __init__(
-        self,
-        obs_dim: int,
-        act_dim: int,
-        hidden_sizes: Sequence[int] = (256, 256),
-        activation: str = "relu",
-    ) -> None:
-        super().__init__()
-        self.q1 = mlp(obs_dim + act_dim, hidden_sizes, 1, activation)
-        self.q2 = mlp(obs_dim + act_dim, hidden_sizes, 1, activation)
-
-    def forward(self, obs: torch.Tensor, act: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(Q1, Q2), each of shape ``(batch,)``."""
-        x = torch.cat([obs, act], dim=-1)
-        return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)

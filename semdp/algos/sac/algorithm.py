@@ -216,7 +216,7 @@ class SAC(Algorithm):
                 unit = torch.rand(self.num_envs, self.act_dim) * 2 - 1
             else:
                 with torch.inference_mode():
-                    unit = self.actor.sample(torch.as_tensor(self._obs, dtype=torch.float32))
+                    unit, _ = self.actor(torch.as_tensor(self._obs, dtype=torch.float32))
             next_obs, rewards, term, trunc, infos = self.envs.step(self.to_env_action(unit))
             ended = np.logical_or(term, trunc)
             result = merged_step_result(next_obs, rewards, term, trunc, infos)

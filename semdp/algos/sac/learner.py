@@ -27,7 +27,7 @@ from torch import nn
 
 from semdp.algos.kernels import sac_written
 from semdp.algos.sac.twin_q import FusedTwinQ
-from semdp.common.networks import SquashedGaussianActor, forward_mlp
+from semdp.common.networks import SquashedGaussianActor
 from semdp.common.optim import LeanAdam
 
 #: Log columns a round of updates reports (``progress.csv`` columns of SAC).
@@ -171,9 +171,7 @@ class SACLearner:
     def _policy(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """A reparameterised sample of the squashed policy and its log-probability
         (:meth:`SquashedGaussianActor.reparameterised` with this learner's noise)."""
-        mean, raw_log_std = forward_mlp(self.actor.net, obs).chunk(2, dim=-1)
-        sample = self.actor.reparameterised(mean, raw_log_std, self._noise(obs.shape[0]))
-        return sample.action, sample.log_prob
+        return self.actor(obs, noise=self._noise(obs.shape[0]))
 
     def update(self, size: int, logs: dict[str, list[torch.Tensor]]) -> None:
         """One critic update on a minibatch of the first ``size`` rows (+ the delayed actor and
@@ -214,10 +212,9 @@ class SACLearner:
         """``(loss_pi, log pi)``: ``mean(alpha log pi(a|s) - min(Q1, Q2)(s, a))`` with ``a``
         reparameterised by ``noise`` (Haarnoja et al. 2018, Eq. 7), the critic at
         ``critic_params`` (held fixed: detached tensors)."""
-        mean, raw_log_std = forward_mlp(self.actor.net, obs).chunk(2, dim=-1)
-        sample = self.actor.reparameterised(mean, raw_log_std, noise)
-        q_pi = self.critic(obs, sample.action, critic_params).min(0).values
-        return (alpha * sample.log_prob - q_pi).mean(), sample.log_prob
+        action, log_prob = self.actor(obs, noise=noise)
+        q_pi = self.critic(obs, action, critic_params).min(0).values
+        return (alpha * log_prob - q_pi).mean(), log_prob
 
     def alpha_loss(self, log_prob: torch.Tensor) -> torch.Tensor:
         """The temperature loss ``-mean(log_alpha (log pi + target entropy))`` (Haarnoja et al.

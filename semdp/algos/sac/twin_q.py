@@ -1,9 +1,9 @@
 """Twin Q networks evaluated as one batched network (SAC's clipped double Q, Haarnoja et al.
 2018; the high level of the Safety-Embedded MDP, thesis §3.5, Alg. 2).
 
-Numerically the same function as :class:`semdp.common.networks.TwinQCritic` (two independent
-ReLU MLPs on ``[obs, act]``), with half the operator calls: the first layers of both networks
-are one matrix product on the shared input, the later layers one batched product each.
+Two independent ReLU MLPs on ``[obs, act]`` (:func:`semdp.common.networks.mlp`, orthogonal
+init), evaluated with half the operator calls: the first layers of both networks are one matrix
+product on the shared input, the later layers one batched product each.
 
 ``layer_norm=True`` normalises every hidden layer before its ReLU (LayerNorm with a learnt
 scale and shift per network), the critic of DroQ (Hiraoka et al. 2022) and RLPD (Ball et al.
@@ -17,14 +17,14 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
-from semdp.common.networks import TwinQCritic
+from semdp.common.networks import mlp
 
 
 class FusedTwinQ(nn.Module):
     """Q1 and Q2 in one module; ``forward`` returns a ``(2, batch)`` tensor.
 
-    Initialised from a :class:`TwinQCritic` (orthogonal init as there), so both forms start
-    from the same weights.
+    Initialised as two :func:`~semdp.common.networks.mlp` ReLU networks, Q1's then Q2's (the
+    draws of two separate networks), whose weights it then holds fused.
 
     Args:
         obs_dim, act_dim: input sizes.
@@ -43,9 +43,8 @@ class FusedTwinQ(nn.Module):
         hidden = [int(h) for h in hidden_sizes]
         if not hidden:
             raise ValueError("FusedTwinQ needs at least one hidden layer")
-        twin = TwinQCritic(obs_dim, act_dim, hidden)
-        nets = [[m for m in twin.q1 if isinstance(m, nn.Linear)],
-                [m for m in twin.q2 if isinstance(m, nn.Linear)]]
+        nets = [[m for m in mlp(obs_dim + act_dim, hidden, 1, "relu") if isinstance(m, nn.Linear)]
+                for _ in range(2)]
         first = [net[0] for net in nets]
         self.hidden = hidden
         self.w_in = nn.Parameter(torch.cat([f.weight.detach().T for f in first], dim=1))
