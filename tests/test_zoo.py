@@ -64,6 +64,17 @@ def test_the_zoo_table_is_rebuilt_from_the_committed_files() -> None:
     assert committed.read_text() == zoo_table(entry_rows())
 
 
+def test_the_zoo_table_names_the_task_a_policy_was_trained_on() -> None:
+    """``env=semdp_car_push1 env.task=Button1`` trained on CarButton1, whatever the env option's
+    name (the config's gymnasium id says so)."""
+    from semdp.reporting.zoo_table import entry_rows
+
+    envs = {row["name"]: row["env"] for row in entry_rows()}
+    assert envs["semdp_car_button1_s0"] == "CarButton1"
+    assert envs["semdp_car_push1_s0"] == "CarPush1"
+    assert envs["sg-ppolag_point_goal1_s0"] == "PointGoal1"
+
+
 def test_the_zoo_table_averages_a_methods_seeds_per_env(tmp_path: Path) -> None:
     from semdp.reporting.zoo_table import entry_rows, zoo_table
 

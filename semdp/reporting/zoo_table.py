@@ -18,11 +18,23 @@ from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
 
+import yaml
+
 from semdp.evaluation.zoo import INDEX, entries
-from semdp.reporting.names import env_name
+from semdp.reporting.names import env_name, env_name_from_id
 from semdp.reporting.tables import format_cell
 
 TITLE = "# Policy zoo: semdp-eval of every committed policy"
+
+
+def _env(run_dir: Path, recorded: str) -> str:
+    """The task the policy was trained on: from its config's gymnasium id where it has one
+    (``env=semdp_point_push1 env.task=Button1`` is PointButton1), else the recorded env name."""
+    config = run_dir / "config.yaml"
+    if config.is_file():
+        env_id = (yaml.safe_load(config.read_text()).get("env") or {}).get("id", "")
+        return env_name_from_id(str(env_id)) or env_name(recorded)
+    return env_name(recorded)
 
 
 def entry_rows(index: Path = INDEX) -> list[dict[str, object]]:
@@ -33,7 +45,7 @@ def entry_rows(index: Path = INDEX) -> list[dict[str, object]]:
         summary = recorded["eval"]
         rows.append({
             "name": name, "method": recorded.get("label", "").split(" [eval")[0],
-            "env": env_name(str(recorded["env"])), "seed": recorded["seed"],
+            "env": _env(run_dir, str(recorded["env"])), "seed": recorded["seed"],
             "env_steps": recorded["env_steps"], "return": summary["return_mean"],
             "return_std": summary["return_std"], "cost": summary["cost_mean"],
             "episodes": summary["episodes"], "with_cost": summary.get("episodes_with_cost"),
