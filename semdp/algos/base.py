@@ -27,7 +27,8 @@ from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from semdp.common.checkpoint_files import load_checkpoint_file, save_checkpoint_file
-from semdp.common.logger import PhaseTimer, ProgressCSV, write_metrics
+from semdp.common.logger import ProgressCSV, write_metrics
+from semdp.common.phase_timer import PhaseTimer
 from semdp.common.seeding import get_rng_states, set_rng_states
 from semdp.common.vector_episodes import evaluate_episodes, summarize
 

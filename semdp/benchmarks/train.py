@@ -7,14 +7,14 @@
 Each algorithm is built exactly as ``semdp-train`` builds it (same configs, same vector env), runs
 ``epochs`` epochs after one warm-up epoch, and the table reports env steps per second of training
 (rollout + update, no evaluation) -- the ``fps`` column of ``progress.csv`` -- and where the time
-went (:class:`semdp.common.logger.PhaseTimer`): simulation (stepping the envs, or waiting for the
-helper that steps them), policy (actor and critic forward passes while acting), storage (buffer
+went (:class:`semdp.common.phase_timer.PhaseTimer`): simulation (stepping the envs, or waiting for
+the helper that steps them), policy (actor and critic forward passes while acting), storage (buffer
 writes, bookkeeping, GAE) and update (actor and critic optimisation), in percent of the wall time;
 ``helper sim`` is the time the env helper spent stepping (``vectorization=async``), which overlaps
 the rest. ``vectorization`` and ``parallel_critics`` override the on-policy algorithms' settings
-(empty: their default, ``auto``, which probes both ways in the first two epochs; the table shows
-the way used last). Results are also written to ``outputs/bench/train_<env>.csv``. Machine load
-changes the figures: report it with them.
+(empty: their default, ``auto``, which probes both ways in the first two epochs; the table shows the
+way used last). Results are also written to ``outputs/bench/train_<env>.csv``. Machine load changes
+the figures: report it with them.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ What else happens to a row is decided by whoever starts the run, not by the epoc
 every written row to the given :class:`RowSink` objects (e.g. TensorBoard event files), which
 are closed when the context ends.
 
-Two more pieces of what a run writes live here: :class:`TensorBoardRows`, a :class:`RowSink`
+One more piece of what a run writes lives here: :class:`TensorBoardRows`, a :class:`RowSink`
 that mirrors every numeric cell of a row into TensorBoard event files beside ``progress.csv``
 (optional extra ``tensorboard``; scalars at step ``env_steps``, empty cells skipped; view with
 ``tensorboard --logdir outputs/``), and :class:`PhaseTimer`, the seconds per phase of an
@@ -27,9 +27,7 @@ import csv
 import importlib.util
 import json
 import math
-import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -252,28 +250,3 @@ class TensorBoardRows:
 
 
 # ----------------------------------------------------------------- phase timer
-PHASES: tuple[str, ...] = ("simulation", "policy", "storage", "update", "simulation_worker")
-
-
-class PhaseTimer:
-    """Accumulated seconds per phase; :attr:`seconds` is a plain dict of floats."""
-
-    def __init__(self) -> None:
-        self.seconds: dict[str, float] = dict.fromkeys(PHASES, 0.0)
-
-    def add(self, phase: str, seconds: float) -> None:
-        """Book ``seconds`` to ``phase``."""
-        self.seconds[phase] += seconds
-
-    @contextmanager
-    def phase(self, name: str) -> Iterator[None]:
-        """Book the time spent inside the ``with`` block to ``name``."""
-        start = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.seconds[name] += time.perf_counter() - start
-
-    def snapshot(self) -> dict[str, float]:
-        """A copy of the current totals (subtract two snapshots for an interval)."""
-        return dict(self.seconds)
