@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from solvers.planner import PlanResult
+from solvers.planner import PlanResult, ProblemSettings
 from solvers.planner.geometry import point_distances, segment_distances
 
 #: ``PlanResult.backend`` and ``status`` of a straight-line plan.
@@ -25,8 +25,10 @@ class StraightLinePlanner:
     """Straight line from start to subgoal (no obstacle avoidance).
 
     Args:
-        n_waypoints: points on the segment, the start included (thesis plans: 30).
-        clearance: only used to fill ``feasible`` (every waypoint >= clearance + r away).
+        n_waypoints: points on the segment, the start included (default: the planning
+            problem's, :class:`~solvers.planner.ProblemSettings`).
+        clearance: only used to fill ``feasible`` (every waypoint >= clearance + r away;
+            default: the planning problem's eps').
         rescue_backend: must be None; accepted so that every ``conf/planner`` entry shares the
             key (the optimising planners take ``"ipopt"`` there).
 
@@ -35,7 +37,8 @@ class StraightLinePlanner:
     """
 
     def __init__(
-        self, n_waypoints: int = 30, clearance: float = 0.5, rescue_backend: str | None = None
+        self, n_waypoints: int = ProblemSettings.n_waypoints,
+        clearance: float = ProblemSettings.clearance, rescue_backend: str | None = None,
     ) -> None:
         if n_waypoints < 2:
             raise ValueError(f"n_waypoints must be >= 2, got {n_waypoints}")

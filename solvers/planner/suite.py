@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from solvers.planner.problem.settings import ProblemSettings
+
 
 @dataclass(frozen=True)
 class PlanningProblem:
@@ -26,7 +28,7 @@ def random_problems(
     n: int,
     seed: int = 0,
     *,
-    clearance: float = 0.5,
+    clearance: float = ProblemSettings.clearance,
     max_count: int = 8,
     subgoal_range: float = 2.0,
     obstacle_range: float = 3.0,
