@@ -6,7 +6,9 @@ motion (each at the place it is now: the check the law makes sound)."""
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -15,6 +17,7 @@ from shielded_env import ShieldedEnv
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded import moving_certificate
+from semdp.embedded.exit_planning import EXIT_STEPS, exit_reach, presses_without_exit
 from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, certified_plans, plans_for
 from semdp.embedded.perception import gremlin_offset, gremlin_offsets
 from semdp.embedded.plan_rollouts import rollout
@@ -311,3 +314,54 @@ def test_only_candidates_the_kept_rows_cannot_explain_are_added() -> None:
                       [1.2, 0.0, base],            # far: another gremlin
                       [-0.3, 0.0, base + 0.35]])   # bounds meet, but 0.45 >= 0.4: may be
     np.testing.assert_array_equal(shield._unexplained(today), today[1:])
+
+
+#: The last low-level steps before the first cost step of a trained PointButton1 run's epoch 9
+#: (outputs/reference/semdp_button1_moving/COMMAND.md, "Training episodes with cost").
+POCKET_TRACE = (Path(__file__).resolve().parents[1] / "outputs" / "reference"
+                / "semdp_button1_moving" / "traces" / "ours_point_s0_epoch9.json")
+
+
+def _pocket(t: int, shift: float = 0.0) -> tuple[RobotState, np.ndarray, np.ndarray]:
+    """The recorded robot state, goal-button region and orbit discs (each disc moved ``shift``
+    m away from the goal button) at the trace's low-level step ``t``."""
+    step = next(s for s in json.loads(POCKET_TRACE.read_text())[0]["steps"] if s["t"] == t)
+    state = RobotState(*step["pos"], *step["vel"], step["yaw"], step["w"])
+    goal = np.array([[*step["objects"]["goal_button"], 0.308]])  # button + extent + margin
+    regions = np.array(step["regions"])
+    orbits = regions[regions[:, 2] >= 0.7, :3]  # orbit discs: 0.355 + 0.141 + extent + margin
+    away = orbits[:, :2] - goal[0, :2]
+    orbits[:, :2] += shift * away / np.linalg.norm(away, axis=1, keepdims=True)
+    return state, goal, orbits
+
+
+def test_a_press_whose_way_out_crosses_an_orbit_disc_is_refused() -> None:
+    """The trained run pressed the goal button 0.015 m outside an orbit disc, in a pocket
+    between two: certified by the static rule (one step, then braking, clear of every region;
+    the goal button is none), the pressed button then a wrong one that its exit left into the
+    disc, where the gremlin touched it 41 steps after the press. From its pose the step before
+    the press, no exit plan leaves the button without entering a disc: refused. With the discs
+    0.3 m farther away, or with the robot farther from the button a few steps earlier, the
+    same press is not refused."""
+    model = robot_model("point")
+    state, goal, orbits = _pocket(42864)
+    assert len(orbits) >= 2
+    assert np.array_equal(presses_without_exit(model, state, goal, orbits, 0.05), goal)
+    state, goal, orbits = _pocket(42864, shift=0.3)
+    assert len(presses_without_exit(model, state, goal, orbits, 0.05)) == 0
+    assert len(presses_without_exit(model, *_pocket(42860), 0.05)) == 0
+
+
+def test_the_exit_reach_bounds_every_exit_from_a_press() -> None:
+    """Oracle: the model's own steps. From a press (at rest, or with the few centimetres per
+    second a contact leaves), every exit plan (an escape held 1 to 10 steps, then braked) stays
+    within the exit reach and the filter's margin of where it started."""
+    for robot in ROBOTS:
+        model = robot_model(robot)
+        holds = np.tile(np.arange(1, EXIT_STEPS + 1), len(model.escapes))
+        for vx, vy in ((0.0, 0.0), (0.04, -0.03), (-0.05, 0.0)):
+            points = rollout(model, RobotState(0.0, 0.0, vx, vy, 0.7, 0.0), None,
+                             np.repeat(model.escapes, EXIT_STEPS, axis=0), holds,
+                             EXIT_STEPS + model.horizon)
+            assert np.hypot(points[..., 0], points[..., 1]).max() <= exit_reach(model) + 0.05
+

@@ -140,3 +140,63 @@ def _static_depth_now(model: RobotModel, state: RobotState, regions: np.ndarray,
                                                 rows[touching, :2]) - (
             rows[touching, 2] - model.extent)
     return float(gaps.min())
+
+
+_EXIT_REACH: dict[type, float] = {}
+
+
+def exit_reach(model: RobotModel) -> float:
+    """How far (m) an exit from rest can take the robot's root: the farthest point of any
+    escape held for 1 to :data:`EXIT_STEPS` steps and then braked to rest (a press stops the
+    robot against the button). Once per robot class, from the model's rollouts."""
+    if type(model) not in _EXIT_REACH:
+        holds = np.arange(1, EXIT_STEPS + 1)
+        points = rollout(model, RobotState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0), None,
+                         np.repeat(model.escapes, len(holds), axis=0),
+                         np.tile(holds, len(model.escapes)), EXIT_STEPS + model.horizon,
+                         kernel="python")
+        _EXIT_REACH[type(model)] = float(np.sqrt((points ** 2).sum(axis=-1)).max())
+    return _EXIT_REACH[type(model)]
+
+
+def presses_without_exit(model: RobotModel, state: RobotState, goal: np.ndarray,
+                         orbits: np.ndarray, margin: float, kernel: str = "native") -> np.ndarray:
+    """The rows of ``goal`` (the goal button's contact regions ``[x, y, R]``) the robot must not
+    press, with gremlins' orbit discs ``orbits`` about (the moving-gremlin certificate,
+    :mod:`semdp.embedded.moving_certificate`).
+
+    A press stops the robot against the button; the goal moves and the button becomes a wrong
+    one, to leave within the grace period by this module's exit, which ranks the discs as
+    regions and knows nothing of the gremlins' timing: it is safe as long as it can leave
+    without entering a disc. So, with the robot outside every disc (inside one, the certified
+    plans keep it off the goal button), a press is refused where the button lies within the
+    exit's reach (:func:`exit_reach` plus ``margin``) of a disc and, pressed and at rest (on the
+    line from the button to the robot, ``R - margin`` from the button's centre: where the touch
+    ends), no exit plan (braking or an escape held 1 to :data:`EXIT_STEPS` steps, then braked to
+    rest) is off the button at the grace period's end without entering a disc on the way. A
+    trained PointButton1 run pressed the goal button 0.015 m outside a disc, in a pocket
+    between two; its way out entered a disc, and the gremlin touched it 41 steps after the
+    press (tests/test_moving_gremlins.py)."""
+    if not len(goal) or not len(orbits) or (
+            point_distances(np.array([[state.x, state.y]]), orbits[:, :2])[0]
+            < orbits[:, 2]).any():
+        return goal[:0]
+    reach = exit_reach(model) + margin
+    near = goal[(point_distances(goal[:, :2], orbits[:, :2])
+                 < goal[:, None, 2] + reach + orbits[None, :, 2]).any(axis=1)]
+    refused = []
+    holds = np.tile(np.arange(1, EXIT_STEPS + 1), len(model.escapes) + 1)
+    for row in near:
+        dx, dy = state.x - row[0], state.y - row[1]
+        touch = row[2] - margin
+        scale = touch / max(math.hypot(dx, dy), 1e-9)
+        pose = RobotState(row[0] + dx * scale, row[1] + dy * scale, 0.0, 0.0, state.yaw, 0.0)
+        options = np.concatenate([np.asarray(model.backup(pose))[None], model.escapes])
+        points = rollout(model, pose, None, np.repeat(options, EXIT_STEPS, axis=0), holds,
+                         EXIT_STEPS + model.horizon, kernel=kernel)
+        in_disc = point_distances(points.reshape(-1, 2), orbits[:, :2]) - orbits[:, 2]
+        clear = in_disc.min(axis=1).reshape(len(points), -1).min(axis=1) >= 0.0
+        off = point_distances(points[:, EXIT_STEPS - 1], row[None, :2])[:, 0] >= touch
+        if not (clear & off).any():
+            refused.append(row)
+    return np.array(refused, dtype=np.float64).reshape(-1, 3)

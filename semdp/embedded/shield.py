@@ -42,7 +42,7 @@ import numpy as np
 
 from semdp.embedded.brake_kernel import compiles, kernel_for
 from semdp.embedded.cost_regions import CONTACT_KINDS, CostRegions
-from semdp.embedded.exit_planning import EXIT_STEPS, exit_option
+from semdp.embedded.exit_planning import EXIT_STEPS, exit_option, presses_without_exit
 from semdp.embedded.lidar_bounds import BEARING_BOUNDS
 from semdp.embedded.moving_certificate import (
     Gremlins,
@@ -212,9 +212,17 @@ class SafetyShield(CostRegions):
         (x, y), (vx, vy) = body.position, body.velocity
         state = RobotState(x, y, vx, vy, body.angle, body.angular_velocity)
         reach = model.stopping_reach(state) + 0.1
-        if self.perception == "lidar" and self._lidar_lower_bound(base, obs) >= reach:
+        goal = self._goal_within(state, base, obs, reach)
+        if (self.perception == "lidar" and not len(goal)
+                and self._lidar_lower_bound(base, obs) >= reach):
             return action  # nothing any lit bin could hold is within reach: no reconstruction
         every, every_contact, every_orbit = self._regions(base, obs)
+        refused = presses_without_exit(model, state, goal, every[every_orbit], self.margin,
+                                       self.kernel)
+        if len(refused):  # the goal button is a cost region where a press has no way out
+            every = np.concatenate([every, refused])
+            every_contact = np.concatenate([every_contact, np.ones(len(refused), dtype=bool)])
+            every_orbit = np.concatenate([every_orbit, np.zeros(len(refused), dtype=bool)])
         if not len(every):
             return action
         near = _distances(state, every) - every[:, 2] < reach
@@ -238,6 +246,17 @@ class SafetyShield(CostRegions):
         options = [brake, *model.escapes]
         return np.asarray(options[self._escape(model, state, options, regions, contact, orbit)],
                           dtype=np.asarray(action).dtype)
+
+    def _goal_within(self, state: RobotState, base: Any, obs: np.ndarray,
+                     reach: float) -> np.ndarray:
+        """Under the moving certificate, the goal button's contact regions within ``reach`` of
+        the robot (a press it might make now; refused by
+        :func:`~semdp.embedded.exit_planning.presses_without_exit` where the way out of the
+        pressed button has to cross an orbit disc); none otherwise."""
+        if self.gremlins != "moving":
+            return np.zeros((0, 3))
+        goal = self.goal_button_regions(base, obs)
+        return goal[_distances(state, goal) - goal[:, 2] < reach] if len(goal) else goal
 
     def _moving(self, model: RobotModel, state: RobotState, action: np.ndarray, base: Any,
                 obs: np.ndarray, regions: np.ndarray, orbit: np.ndarray) -> np.ndarray | None:
