@@ -115,15 +115,15 @@ def exit_option(model: RobotModel, state: RobotState, options: list[np.ndarray],
     return ExitPlan(best // EXIT_STEPS, best % EXIT_STEPS + 1)
 
 
-def _hold_then_brake(model: RobotModel, state: RobotState, options: list[np.ndarray],
-                     kernel: str = "native") -> np.ndarray:
-    """Poses ``(len(options) * EXIT_STEPS, EXIT_STEPS, 3)`` (x, y, yaw after each step):
-    row ``i * EXIT_STEPS + j - 1`` holds option ``i`` for ``j`` steps, then brakes
-    (``model.backup``) for the remaining ``EXIT_STEPS - j``: the model's steps, rolled out
-    together (:func:`~semdp.embedded.plan_rollouts.rollout`)."""
+def _hold_then_brake(model: RobotModel, state: RobotState, options: list[np.ndarray] | np.ndarray,
+                     kernel: str = "native", steps: int = EXIT_STEPS) -> np.ndarray:
+    """Poses ``(len(options) * EXIT_STEPS, steps, 3)`` (x, y, yaw after each step): row
+    ``i * EXIT_STEPS + j - 1`` holds option ``i`` for ``j`` steps, then brakes
+    (``model.backup``) for the remaining ``steps - j``: the exit's plans, the model's steps,
+    rolled out together (:func:`~semdp.embedded.plan_rollouts.rollout`)."""
     actions = np.repeat(np.asarray(options, dtype=np.float64).reshape(-1, 2), EXIT_STEPS, axis=0)
-    holds = np.tile(np.arange(1, EXIT_STEPS + 1), len(options))
-    return rollout(model, state, None, actions, holds, EXIT_STEPS, with_yaw=True, kernel=kernel)
+    holds = np.tile(np.arange(1, EXIT_STEPS + 1), len(actions) // EXIT_STEPS)
+    return rollout(model, state, None, actions, holds, steps, with_yaw=True, kernel=kernel)
 
 
 def _static_depth_now(model: RobotModel, state: RobotState, regions: np.ndarray,
@@ -150,11 +150,8 @@ def exit_reach(model: RobotModel) -> float:
     escape held for 1 to :data:`EXIT_STEPS` steps and then braked to rest (a press stops the
     robot against the button). Once per robot class, from the model's rollouts."""
     if type(model) not in _EXIT_REACH:
-        holds = np.arange(1, EXIT_STEPS + 1)
-        points = rollout(model, RobotState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0), None,
-                         np.repeat(model.escapes, len(holds), axis=0),
-                         np.tile(holds, len(model.escapes)), EXIT_STEPS + model.horizon,
-                         kernel="python")
+        points = _hold_then_brake(model, RobotState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+                                  model.escapes, "python", EXIT_STEPS + model.horizon)[..., :2]
         _EXIT_REACH[type(model)] = float(np.sqrt((points ** 2).sum(axis=-1)).max())
     return _EXIT_REACH[type(model)]
 
@@ -185,15 +182,14 @@ def presses_without_exit(model: RobotModel, state: RobotState, goal: np.ndarray,
     near = goal[(point_distances(goal[:, :2], orbits[:, :2])
                  < goal[:, None, 2] + reach + orbits[None, :, 2]).any(axis=1)]
     refused = []
-    holds = np.tile(np.arange(1, EXIT_STEPS + 1), len(model.escapes) + 1)
     for row in near:
         dx, dy = state.x - row[0], state.y - row[1]
         touch = row[2] - margin
         scale = touch / max(math.hypot(dx, dy), 1e-9)
         pose = RobotState(row[0] + dx * scale, row[1] + dy * scale, 0.0, 0.0, state.yaw, 0.0)
         options = np.concatenate([np.asarray(model.backup(pose))[None], model.escapes])
-        points = rollout(model, pose, None, np.repeat(options, EXIT_STEPS, axis=0), holds,
-                         EXIT_STEPS + model.horizon, kernel=kernel)
+        points = _hold_then_brake(model, pose, options, kernel,
+                                  EXIT_STEPS + model.horizon)[..., :2]
         in_disc = point_distances(points.reshape(-1, 2), orbits[:, :2]) - orbits[:, 2]
         clear = in_disc.min(axis=1).reshape(len(points), -1).min(axis=1) >= 0.0
         off = point_distances(points[:, EXIT_STEPS - 1], row[None, :2])[:, 0] >= touch
