@@ -44,3 +44,11 @@ def env_name_from_id(env_id: str) -> str | None:
     for any other id."""
     match = _SAFETY_GYM_ID.search(env_id)
     return "".join(match.groups()) if match else None
+
+
+
+def trained_env(env_id: str, recorded: str) -> str:
+    """The env's name for tables: the Safety Gym task a run stepped, from its config's gymnasium
+    id (``env=semdp_point_push1 env.task=Button1`` is PointButton1), else :func:`env_name` of
+    the recorded name."""
+    return env_name_from_id(env_id) or env_name(recorded)

@@ -24,7 +24,7 @@ from typing import Any
 import yaml
 
 from semdp.paths import REPO_ROOT
-from semdp.reporting.names import algorithm_name, env_name, env_name_from_id
+from semdp.reporting.names import algorithm_name, env_name, trained_env
 from semdp.reporting.tables import format_cell
 
 #: The committed results.
@@ -205,11 +205,10 @@ def kept_runs(sources: Sources, folder: str) -> list[tuple[str, dict[str, Any]]]
     runs = []
     for path in sources.glob(f"{folder}/runs/**/metrics.json"):
         run_dir, metrics = str(Path(path).parent), dict(sources.data(path))
-        env = env_name(str(metrics.get("env")))
+        node = {}
         if sources.exists(f"{run_dir}/config.yaml"):
             node = (sources.data(f"{run_dir}/config.yaml") or {}).get("env") or {}
-            env = env_name_from_id(str(node.get("id", ""))) or env
-        metrics["env"] = env
+        metrics["env"] = trained_env(str(node.get("id", "")), str(metrics.get("env")))
         runs.append((run_dir, metrics))
     return runs
 

@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from semdp.reporting.names import algorithm_name, env_name, env_name_from_id
+from semdp.reporting.names import algorithm_name, trained_env
 
 logger = logging.getLogger(__name__)
 
@@ -244,7 +244,7 @@ def pretrain_steps(path: Path) -> int:
 def _env(names: dict[str, Any], recorded: str) -> str:
     """The env's name for tables: the Safety Gym task the run stepped (from the config's env
     id: ``env=semdp_point_push1 env.task=Button1`` is PointButton1), else the recorded name."""
-    return env_name_from_id(str(names.get("env_id", ""))) or env_name(recorded)
+    return trained_env(str(names.get("env_id", "")), recorded)
 
 
 def load_run(path: Path) -> RunRecord:

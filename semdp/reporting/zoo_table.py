@@ -21,7 +21,7 @@ from pathlib import Path
 import yaml
 
 from semdp.evaluation.zoo import INDEX, entries
-from semdp.reporting.names import env_name, env_name_from_id
+from semdp.reporting.names import env_name, trained_env
 from semdp.reporting.tables import format_cell
 
 TITLE = "# Policy zoo: semdp-eval of every committed policy"
@@ -33,7 +33,7 @@ def _env(run_dir: Path, recorded: str) -> str:
     config = run_dir / "config.yaml"
     if config.is_file():
         env_id = (yaml.safe_load(config.read_text()).get("env") or {}).get("id", "")
-        return env_name_from_id(str(env_id)) or env_name(recorded)
+        return trained_env(str(env_id), recorded)
     return env_name(recorded)
 
 
