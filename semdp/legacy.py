@@ -70,7 +70,7 @@ RECORDED_BOUNDS: dict[object, str] = {True: "bin", False: "none"}
 ADDED_ATTRIBUTES: dict[str, dict[str, object]] = {
     "semdp.embedded.shield.SafetyShield": {"fallback": "escape", "kernel": "compiled",
                                            "_buttons": None, "gremlins": "orbit",
-                                           "_plan": None, "_plan_rows": None,
+                                           "_plan": None, "_plan_seen": None,
                                            "_kept_for": 0},
     "semdp.embedded.wrapper.SafetyEmbeddedEnv": {"_buttons": None, "gremlins": "orbit"},
     "semdp.embedded.brake_kernel.ClearanceKernel": {"native": False},

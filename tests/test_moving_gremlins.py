@@ -17,6 +17,7 @@ from shielded_env import ShieldedEnv
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded import moving_certificate
+from semdp.embedded.cost_regions import Regions
 from semdp.embedded.exit_planning import EXIT_STEPS, exit_reach, presses_without_exit
 from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, certified_plans, plans_for
 from semdp.embedded.perception import gremlin_offset, gremlin_offsets
@@ -298,22 +299,98 @@ def test_a_car_keeps_its_plan_when_the_lidar_candidates_change() -> None:
     assert stats["cost_steps_total"] == 0
 
 
-def test_only_candidates_the_kept_rows_cannot_explain_are_added() -> None:
-    """Rows ``[x, y, R]`` with ``R`` = the orbit disc's radius plus the bound ``g`` on the home
-    (the LiDAR's bearing error): a row today may be the same gremlin as a kept row when their
-    bounds meet (centres at most ``g + g'`` apart) and ``g + g'`` is under 0.4 m (homes are
-    0.8 m apart), else it is added (it may hold a gremlin not seen when the plan was
-    certified). Hand-placed rows."""
-    from semdp.embedded.perception import GREMLIN_ORBIT
+def _rows(rows: list[list[float]], spread: list[float], keepout: float | list[float]
+          ) -> Regions:
+    """Hand-placed :class:`Regions` (flags irrelevant to the identity of their objects)."""
+    m = len(rows)
+    return Regions(np.array(rows, dtype=float).reshape(-1, 3), np.zeros(m, bool),
+                   np.zeros(m, bool), np.array(spread, dtype=float),
+                   np.broadcast_to(np.asarray(keepout, dtype=float), (m,)).copy())
 
+
+def test_only_rows_the_kept_rows_cannot_explain_are_added() -> None:
+    """Oracle by hand: a row's object lies within its spread of its centre, two objects' centres
+    are at least the sum of their keepouts apart, so today's row ``b`` holds kept row ``a``'s
+    object when ``spread_a + |c_a - c_b| + spread_b < keepout_a + keepout_b``; every other row
+    is added (it may hold an object not seen when the plan was certified)."""
+    kept = _rows([[0.0, 0.0, 0.9]], [0.1], 0.4)                      # a gremlin's home
+    today = _rows([[0.25, 0.0, 0.9], [0.5, 0.0, 0.9], [0.6, 0.0, 0.9], [1.2, 0.0, 0.8],
+                   [0.0, 0.1, 0.9]],
+                  [0.15, 0.15, 0.15, 0.0, np.inf], 0.4)
+    # 0.5 and 0.75 < 0.8: the same home; 0.85, 1.3 and inf >= 0.8: maybe another gremlin
+    np.testing.assert_array_equal(today.unexplained_by(kept).rows, today.rows[2:])
+    hazard = _rows([[0.0, 0.0, 0.3]], [0.05], 0.18)
+    button = _rows([[0.2, 0.0, 0.4], [0.35, 0.0, 0.4]], [0.1, 0.1], 0.2)
+    # 0.35 < 0.38 = 0.18 + 0.2 (no button can be that close to the hazard), 0.5 >= 0.38
+    np.testing.assert_array_equal(button.unexplained_by(hazard).rows, button.rows[1:])
+    assert len(today.unexplained_by(_rows([], [], 0.4)).rows) == len(today.rows)
+
+
+#: A trained CarButton1 run's kept plan one step after it was certified, with both steps'
+#: static rows and gremlin homes (rows, spreads, keepouts) as the filter built them
+#: (outputs/reference/semdp_button1_moving/COMMAND.md, "Training episodes with cost").
+KEPT_FRAMES = Path(__file__).resolve().parent / "data" / "car_kept_plan_frames.json"
+
+
+def _kept_frames() -> tuple[dict, dict]:
+    fx = json.loads(KEPT_FRAMES.read_text())["plan_lost"]
+    out = []
+    for key in ("certified", "next"):
+        node = fx[key]
+        out.append({"statics": _rows(**node["statics"]), "homes": _rows(**node["homes"]),
+                    "time": node["time"], "plan": Plan(tuple(node["plan"][0]), node["plan"][1]),
+                    "state": node.get("state")})
+    return out[0], out[1]
+
+
+def _kept_check(shield: SafetyShield, then: dict, now: dict
+                ) -> tuple[RobotState, Gremlins, object]:
+    model = robot_model("car")
+    state = RobotState(*now["state"])
+    gremlins = Gremlins(now["homes"].rows, now["time"], model.h * model.substeps)
+    shield._plan_seen = (then["statics"], then["homes"])
+    frame = shield._kept_frame(model, state, None, now["plan"], now["statics"], now["homes"],
+                               gremlins)
+    return state, gremlins, frame
+
+
+def test_a_car_keeps_its_plan_when_a_static_region_widens() -> None:
+    """The Car deep in an orbit disc follows a plan certified 0.002 m clear of a wrong button's
+    region; one step later the button's LiDAR region is 0.011 m wider and 0.011 m off, and
+    the same plan, one step shorter, is 0.002 m into it: checked against today's rows alone
+    the plan is lost, and the Car then chattered between best-effort plans until the gremlin
+    came round (``cost_gremlins``, 52 steps later). The button is the one it was certified
+    against (its rows 0.011 m apart, spreads under 0.11 m, two buttons at least 0.4 m
+    apart): the plan is kept."""
+    then, now = _kept_frames()
     shield = SafetyShield(gremlins="moving")
-    base = shield.margin + GREMLIN_ORBIT  # unbound: no gremlin size or robot extent
-    shield._plan_rows = np.array([[0.0, 0.0, base + 0.1]])
-    today = np.array([[0.25, 0.0, base + 0.15],    # 0.25 <= 0.1 + 0.15: may be the same
-                      [0.0, 0.26, base + 0.15],    # 0.26 > 0.25: another gremlin
-                      [1.2, 0.0, base],            # far: another gremlin
-                      [-0.3, 0.0, base + 0.35]])   # bounds meet, but 0.45 >= 0.4: may be
-    np.testing.assert_array_equal(shield._unexplained(today), today[1:])
+    model = robot_model("car")
+    state = RobotState(*now["state"])
+    gremlins = Gremlins(now["homes"].rows, now["time"], model.h * model.substeps)
+    points, ends = moving_certificate.plan_points(model, state, None, [now["plan"]])
+    today = moving_certificate.clearances(points, ends, state, now["statics"].rows, gremlins,
+                                          shield.margin)[0]
+    assert -0.01 < today < 0.0  # the hole: today's rows alone refuse the plan
+    added = now["statics"].unexplained_by(then["statics"]).rows
+    assert np.hypot(*(added[:, :2] - (0.845, -0.489)).T).min() > 1.0  # the button is not added
+    _, _, frame = _kept_check(shield, then, now)
+    assert frame is not None
+
+
+def test_a_kept_plan_meets_an_object_not_seen_when_it_was_certified() -> None:
+    """The same step with a hazard planted on the kept plan's path, 0.4 m from every row the
+    plan was certified against (no kept row can hold it): the plan is not kept. Explaining
+    every row by the kept ones (no keepout bound) would keep it."""
+    then, now = _kept_frames()
+    model = robot_model("car")
+    state = RobotState(*now["state"])
+    points, _ = moving_certificate.plan_points(model, state, None, [now["plan"]])
+    x, y = points[0, 12]
+    planted = _rows([[x, y, 0.3]], [0.05], 0.18)
+    assert len(planted.unexplained_by(then["statics"]).rows) == 1
+    now = {**now, "statics": now["statics"].plus(planted)}
+    _, _, frame = _kept_check(SafetyShield(gremlins="moving"), then, now)
+    assert frame is None
 
 
 #: The last low-level steps before the first cost step of a trained PointButton1 run's epoch 9
@@ -346,10 +423,10 @@ def test_a_press_whose_way_out_crosses_an_orbit_disc_is_refused() -> None:
     model = robot_model("point")
     state, goal, orbits = _pocket(42864)
     assert len(orbits) >= 2
-    assert np.array_equal(presses_without_exit(model, state, goal, orbits, 0.05), goal)
+    assert presses_without_exit(model, state, goal, orbits, 0.05).all()
     state, goal, orbits = _pocket(42864, shift=0.3)
-    assert len(presses_without_exit(model, state, goal, orbits, 0.05)) == 0
-    assert len(presses_without_exit(model, *_pocket(42860), 0.05)) == 0
+    assert not presses_without_exit(model, state, goal, orbits, 0.05).any()
+    assert not presses_without_exit(model, *_pocket(42860), 0.05).any()
 
 
 def test_the_exit_reach_bounds_every_exit_from_a_press() -> None:
@@ -365,3 +442,33 @@ def test_the_exit_reach_bounds_every_exit_from_a_press() -> None:
                              EXIT_STEPS + model.horizon)
             assert np.hypot(points[..., 0], points[..., 1]).max() <= exit_reach(model) + 0.05
 
+
+def test_a_region_that_widens_around_the_car_does_not_end_its_kept_plan() -> None:
+    """A trained CarButton1 run (its epoch 6 replayed with the kept static rows): the Car
+    0.033 m outside a wrong button's contact region, its plan certified against two rows of
+    that button; the next LiDAR row of the button is 0.056 m wider than the button's region and
+    holds the Car, and the moving certificate gave up its plan ("inside a static region"),
+    chattered and was hit by a gremlin 63 steps later. A kept row holds the same button (the
+    spreads and the distance under the two buttons' keepouts) and the Car is outside it: not
+    inside. Without a kept plan, or with a planted row that no kept row explains, or with the
+    Car inside the kept row too: inside."""
+    fx = json.loads(KEPT_FRAMES.read_text())["region_widens"]
+    state = RobotState(*fx["state"])
+    kept, today = _rows(**fx["kept_statics"]), _rows(**fx["today_statics"])
+    button = np.array(fx["button"])
+    shield = SafetyShield(gremlins="moving")
+    inside = np.hypot(today.rows[:, 0] - state.x, today.rows[:, 1] - state.y) < today.rows[:, 2]
+    assert inside.sum() == 1
+    assert np.hypot(*(today.rows[inside, :2] - button[:2]).T)[0] < 0.1  # the button's row
+    assert shield._inside_static(state, today)  # no kept plan: today's rows
+    shield._plan_seen = (kept, _rows([], [], 0.4))
+    assert not shield._inside_static(state, today)
+    planted = _rows([[state.x + 0.1, state.y - 0.1, 0.3]], [0.05], 0.18)
+    assert len(planted.unexplained_by(kept).rows) == 1
+    assert shield._inside_static(state, today.plus(planted))
+    holding = kept.where(np.hypot(kept.rows[:, 0] - button[0], kept.rows[:, 1] - button[1])
+                         < 0.15)
+    assert len(holding.rows)
+    grown = holding._replace(rows=holding.rows + [0.0, 0.0, 0.1])  # the Car inside it too
+    shield._plan_seen = (grown, _rows([], [], 0.4))
+    assert shield._inside_static(state, today)

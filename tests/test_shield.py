@@ -263,8 +263,8 @@ def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_
     shield = SafetyShield(margin=0.05, perception="lidar", kinds=("hazards", "vases"),
                           lidar_bearing_bound="bin")
     shield.bind(base)
-    regions, contact, orbit = shield._regions(base, obs)
-    expected, touches = [], []
+    regions, contact, orbit, spread, keepout = shield._regions(base, obs)
+    expected, touches, keepouts = [], [], []
     chord = 2.0 * math.sin(math.pi / 32)  # a half bin's bearing error per metre of range
     for kind in ("hazards", "vases"):
         found = obstacles_from_lidar(obs[base.obs_slices[f"{kind}_lidar"]], base.robot_position,
@@ -273,7 +273,12 @@ def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_
         grow = np.array([shield._radii[kind] + 0.05 + chord * r for r in ranges])
         expected.append(np.column_stack([found, grow]))
         touches += [kind == "vases"] * len(found)
+        keepouts += [{"hazards": 0.18, "vases": 0.15}[kind]] * len(found)  # the level's spec
     expected = np.vstack(expected)
     assert len(expected) >= 4  # both kinds lit, several bins each
     np.testing.assert_allclose(regions, expected, rtol=0, atol=1e-12)
     assert contact.tolist() == touches and not orbit.any()
+    # the spread: where the object may be around the row's centre, the half bin's chord
+    np.testing.assert_allclose(spread, chord * np.linalg.norm(
+        expected[:, :2] - np.asarray(base.robot_position), axis=1), rtol=0, atol=1e-12)
+    assert keepout.tolist() == keepouts

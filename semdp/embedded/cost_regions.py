@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -52,6 +52,63 @@ CONTACT_KINDS = ("vases", "pillars", "gremlins", "buttons")
 _FRAMED_KINDS = ("buttons", "gremlins")
 #: Each kind's LiDAR observation key.
 _LIDAR_KEYS = {kind: f"{kind}_lidar" for kind in OBSTACLE_KINDS}
+
+
+class Regions(NamedTuple):
+    """Cost-region rows and, per row, what the filter knows of the object behind it."""
+
+    #: ``(m, 3)`` rows ``[x, y, R]``: each disc holds its object's cost region plus the margin.
+    rows: np.ndarray
+    #: ``(m,)``: the cost is a contact with the robot's outline (``R`` holds the robot's extent).
+    contact: np.ndarray
+    #: ``(m,)``: a gremlin's orbit disc (inside it the gremlin may come, elsewhere on its orbit).
+    orbit: np.ndarray
+    #: ``(m,)`` m: how far the object's centre (a gremlin's home) may lie from the row's centre:
+    #: the LiDAR bin's bearing allowance; 0 read from the simulator; ``inf`` unbounded.
+    spread: np.ndarray
+    #: ``(m,)`` m: the placement keepout of the row's kind (two objects' centres are at least
+    #: the sum of their keepouts apart; :func:`placement_keepout`).
+    keepout: np.ndarray
+
+    def where(self, mask: np.ndarray) -> Regions:
+        """The rows where ``mask`` holds."""
+        return Regions(*(a[mask] for a in self))
+
+    def plus(self, other: Regions) -> Regions:
+        """These rows, then ``other``'s."""
+        return Regions(*(np.concatenate([a, b]) for a, b in zip(self, other, strict=True)))
+
+    def same_objects(self, seen: Regions) -> np.ndarray:
+        """``(m, n)``: whether row ``i`` holds the object that ``seen``'s row ``j`` holds
+        (objects that do not move: static kinds, gremlins' homes). Each row holds an object
+        whose centre lies within its spread of the row's centre; the two objects are then at
+        most ``spread_i + |c_i - c_j| + spread_j`` apart, and two different objects at least
+        ``keepout_i + keepout_j``: below that, they are one."""
+        apart = np.hypot(self.rows[:, None, 0] - seen.rows[None, :, 0],
+                         self.rows[:, None, 1] - seen.rows[None, :, 1])
+        return (self.spread[:, None] + apart + seen.spread[None, :]
+                < self.keepout[:, None] + seen.keepout[None, :])
+
+    def unexplained_by(self, seen: Regions) -> Regions:
+        """The rows that may hold an object none of ``seen``'s rows holds
+        (:meth:`same_objects`)."""
+        if not len(self.rows) or not len(seen.rows):
+            return self
+        return self.where(~self.same_objects(seen).any(axis=1))
+
+
+def no_regions() -> Regions:
+    """No rows."""
+    flags = np.zeros(0, dtype=bool)
+    return Regions(np.zeros((0, 3)), flags, flags, np.zeros(0), np.zeros(0))
+
+
+def placement_keepout(base: Any, kind: str) -> float:
+    """The placement keepout (m) of ``kind`` in ``base``'s layout (the Safety Gym layouts'
+    :class:`~sims.safety_gym.config.ObjectSpec`); 0 where the env states none."""
+    spec = getattr(base, "layout_spec", None)
+    objects = getattr(spec, "objects", {})
+    return float(objects[kind].keepout) if kind in objects else 0.0
 
 
 class CostRegions:
@@ -98,16 +155,14 @@ class CostRegions:
 
     def cost_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """``(m, 3)`` rows ``[x, y, R]``: the cost regions plus the margin."""
-        return self._regions(base, obs)[0]
+        return self._regions(base, obs).rows
 
-    def _regions(self, base: Any, obs: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`cost_regions` and, per row, whether its cost is a contact with the robot's
-        outline (its ``R`` then holds the robot's extent) and whether it is a gremlin's orbit
-        disc (a moving object's: inside it the gremlin may come, elsewhere on its orbit)."""
+    def _regions(self, base: Any, obs: np.ndarray) -> Regions:
+        """:meth:`cost_regions` with what the filter knows of each row (:class:`Regions`)."""
         if self.perception == "lidar" and self.lidar_bearing_bound != "none":
             return self._bounded_lidar_regions(base, obs)
-        rows, contact, orbit = [], [], []
+        spread = 0.0 if self.perception == "gt" else math.inf  # "none": not bounded
+        out = no_regions()
         for kind in self.kinds:
             if kind not in self._radii:
                 continue
@@ -116,10 +171,8 @@ class CostRegions:
             if len(found):
                 found = np.array(found, dtype=np.float64)
                 found[:, 2] = self._radii[kind] + self.margin + self._orbit(base, kind)[1]
-                rows.append(found)
-                contact.append(np.full(len(found), kind in CONTACT_KINDS))
-                orbit.append(np.full(len(found), kind == "gremlins"))
-        return _stack(rows, contact, orbit)
+                out = out.plus(_rows_of(base, kind, found, np.full(len(found), spread)))
+        return out
 
     def _lidar_channels(self, base: Any, obs: np.ndarray, kinds: tuple[str, ...] | None = None
                         ) -> Iterator[tuple[str, float, np.ndarray, LidarFrame]]:
@@ -142,25 +195,26 @@ class CostRegions:
             shift, extra = self._orbit(base, kind)
             yield kind, self._radii[kind] + self.margin + extra, shift, frame
 
-    def _bounded_lidar_regions(self, base: Any, obs: np.ndarray
-                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _bounded_lidar_regions(self, base: Any, obs: np.ndarray) -> Regions:
         """Every lit bin of each kind's LiDAR as a region bounding its object's bearing
-        (:func:`~semdp.embedded.lidar_bounds.bin_regions` under :attr:`lidar_bearing_bound`),
-        and the flags of :meth:`_regions`."""
-        rows: list[tuple[float, float, float]] = []
-        contact: list[bool] = []
-        orbit: list[bool] = []
+        (:func:`~semdp.embedded.lidar_bounds.bin_regions` under :attr:`lidar_bearing_bound`;
+        the bin's allowance is the row's spread), as :meth:`_regions`."""
+        out = no_regions()
         bound = self.lidar_bearing_bound
         for kind, radius, shift, frame in self._lidar_channels(base, obs):
-            sx, sy = float(shift[0]), float(shift[1])
-            found = bin_regions(frame, bound)
-            rows += [(x + sx, y + sy, radius + grow) for x, y, grow in found]
-            contact += [kind in CONTACT_KINDS] * len(found)
-            orbit += [kind == "gremlins"] * len(found)
-        if not rows:
-            return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
-        return (np.array(rows, dtype=np.float64), np.array(contact, dtype=bool),
-                np.array(orbit, dtype=bool))
+            found = np.array(bin_regions(frame, bound), dtype=np.float64).reshape(-1, 3)
+            if len(found):
+                grow = found[:, 2].copy()
+                found[:, :2] += shift
+                found[:, 2] = radius + grow
+                out = out.plus(_rows_of(base, kind, found, grow))
+        return out
+
+    def goal_button(self, base: Any, obs: np.ndarray) -> Regions:
+        """:meth:`goal_button_regions` as :class:`Regions` (contact rows of the buttons)."""
+        rows = self.goal_button_regions(base, obs)
+        spread = rows[:, 2] - (self._radii.get("buttons", 0.0) + self.margin)
+        return _rows_of(base, "buttons", rows, spread)
 
     def goal_button_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """``(m, 3)`` rows ``[x, y, R]``: the goal button's contact region (Button tasks; no
@@ -221,9 +275,9 @@ class CostRegions:
         return bound
 
 
-def _stack(rows: list[np.ndarray], contact: list[np.ndarray], orbit: list[np.ndarray]
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Region rows ``(m, 3)`` and their contact and orbit flags ``(m,)`` from per-kind lists."""
-    if not rows:
-        return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
-    return np.concatenate(rows), np.concatenate(contact), np.concatenate(orbit)
+def _rows_of(base: Any, kind: str, rows: np.ndarray, spread: np.ndarray) -> Regions:
+    """``rows`` ``(m, 3)`` of objects of ``kind`` with their ``spread`` as :class:`Regions`."""
+    m = len(rows)
+    return Regions(rows, np.full(m, kind in CONTACT_KINDS), np.full(m, kind == "gremlins"),
+                   np.asarray(spread, dtype=np.float64),
+                   np.full(m, placement_keepout(base, kind)))

@@ -158,9 +158,9 @@ def exit_reach(model: RobotModel) -> float:
 
 def presses_without_exit(model: RobotModel, state: RobotState, goal: np.ndarray,
                          orbits: np.ndarray, margin: float, kernel: str = "native") -> np.ndarray:
-    """The rows of ``goal`` (the goal button's contact regions ``[x, y, R]``) the robot must not
-    press, with gremlins' orbit discs ``orbits`` about (the moving-gremlin certificate,
-    :mod:`semdp.embedded.moving_certificate`).
+    """Per row of ``goal`` (the goal button's contact regions ``[x, y, R]``), whether the robot
+    must not press it, with gremlins' orbit discs ``orbits`` about (the moving-gremlin
+    certificate, :mod:`semdp.embedded.moving_certificate`).
 
     A press stops the robot against the button; the goal moves and the button becomes a wrong
     one, to leave within the grace period by this module's exit, which ranks the discs as
@@ -174,15 +174,16 @@ def presses_without_exit(model: RobotModel, state: RobotState, goal: np.ndarray,
     trained PointButton1 run pressed the goal button 0.015 m outside a disc, in a pocket
     between two; its way out entered a disc, and the gremlin touched it 41 steps after the
     press (tests/test_moving_gremlins.py)."""
+    refused = np.zeros(len(goal), dtype=bool)
     if not len(goal) or not len(orbits) or (
             point_distances(np.array([[state.x, state.y]]), orbits[:, :2])[0]
             < orbits[:, 2]).any():
-        return goal[:0]
+        return refused
     reach = exit_reach(model) + margin
-    near = goal[(point_distances(goal[:, :2], orbits[:, :2])
-                 < goal[:, None, 2] + reach + orbits[None, :, 2]).any(axis=1)]
-    refused = []
-    for row in near:
+    near = (point_distances(goal[:, :2], orbits[:, :2])
+            < goal[:, None, 2] + reach + orbits[None, :, 2]).any(axis=1)
+    for i in np.flatnonzero(near):
+        row = goal[i]
         dx, dy = state.x - row[0], state.y - row[1]
         touch = row[2] - margin
         scale = touch / max(math.hypot(dx, dy), 1e-9)
@@ -193,6 +194,5 @@ def presses_without_exit(model: RobotModel, state: RobotState, goal: np.ndarray,
         in_disc = point_distances(points.reshape(-1, 2), orbits[:, :2]) - orbits[:, 2]
         clear = in_disc.min(axis=1).reshape(len(points), -1).min(axis=1) >= 0.0
         off = point_distances(points[:, EXIT_STEPS - 1], row[None, :2])[:, 0] >= touch
-        if not (clear & off).any():
-            refused.append(row)
-    return np.array(refused, dtype=np.float64).reshape(-1, 3)
+        refused[i] = not (clear & off).any()
+    return refused

@@ -24,15 +24,19 @@ step of some plan; otherwise the robot follows a plan certified from where it is
 certified at one step is, one step shorter, certified at the next (the same trajectory under
 the model), so by induction a certified plan exists at every step once one did: the filter
 keeps the last one and tries it alone first (one rollout), then the whole set. The induction
-needs the gremlins the plan was certified against, not the next LiDAR frame's candidates (every
-lit bin is one; they come and go as the robot turns): the kept plan is checked against today's
-candidates, else against those it was certified against plus today's that none of those can
-explain (``SafetyShield._unexplained``: a gremlin not seen then). Where none is
-certified (a contact, a gremlin seen late) the filter takes the plan with the largest clearance
-inside an orbit disc, and its static rules outside.
+needs the objects the plan was certified against, not the next LiDAR frame's rows (every lit
+bin is one; they come and go, and their bounds change, as the robot turns): the kept plan is
+checked against today's rows, else against those it was certified against plus today's rows
+that may hold an object none of those holds
+(:meth:`~semdp.embedded.cost_regions.Regions.unexplained_by`: an object not seen then; static
+objects and gremlins' homes do not move). Where none is certified (a contact, a gremlin seen
+late) the filter takes the plan with the largest clearance inside an orbit disc, and its static
+rules outside.
 
-The bound relied on: the robot model's one-step error and the gremlin law's tolerance within
-the filter's margin, as for the static certificate; gaps are checked at env steps.
+The bounds relied on: the robot model's one-step error and the gremlin law's tolerance within
+the filter's margin, as for the static certificate; the layout's placement keepouts (two
+objects' centres at least the sum of their kinds' keepouts apart) for telling a row's object
+from another's; gaps are checked at env steps.
 tests/test_moving_gremlins.py plants robots that cross orbit discs and a check that ignores
 the gremlins' motion (fails: contact).
 """

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from semdp.embedded.brake_kernel import compiles, kernel_for
-from semdp.embedded.cost_regions import CONTACT_KINDS, CostRegions
+from semdp.embedded.cost_regions import CONTACT_KINDS, CostRegions, Regions, no_regions
 from semdp.embedded.exit_planning import EXIT_STEPS, exit_option, presses_without_exit
 from semdp.embedded.lidar_bounds import BEARING_BOUNDS
 from semdp.embedded.moving_certificate import (
@@ -55,18 +55,14 @@ from semdp.embedded.moving_certificate import (
 )
 from semdp.embedded.perception import (
     GREMLIN_MODELS,
-    GREMLIN_ORBIT,
     OBSTACLE_KINDS,
     PERCEPTION_MODES,
     episode_time,
 )
 from semdp.embedded.robot_models import RobotModel, RobotState, robot_model
 from semdp.embedded.shield_records import FilterRecord, ShieldStats, branch_of
-from sims.safety_gym.config import GREMLIN_KEEPOUT
 from solvers.planner.geometry import point_distances
 
-#: The least distance (m) between two gremlins' homes: twice their placement keepout.
-GREMLIN_SPACING = 2.0 * GREMLIN_KEEPOUT
 #: What the filter does when neither the action nor braking is certified.
 FALLBACKS = ("escape", "brake")
 
@@ -139,7 +135,8 @@ class SafetyShield(CostRegions):
         self.kernel = kernel
         self.gremlins = gremlins
         self._plan: Plan | None = None
-        self._plan_rows: np.ndarray | None = None
+        #: The static rows and gremlin homes the kept plan was certified against.
+        self._plan_seen: tuple[Regions, Regions] | None = None
         self._kept_for = 0  # steps the best-effort plan has been kept (_best_effort)
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
@@ -158,7 +155,7 @@ class SafetyShield(CostRegions):
     def new_episode(self) -> None:
         """Forget the last episode's buttons and the moving-gremlin plan kept."""
         super().new_episode()
-        self._plan, self._plan_rows, self._kept_for = None, None, 0
+        self._plan, self._plan_seen, self._kept_for = None, None, 0
 
     def reset_stats(self) -> None:
         """Zero the counters."""
@@ -213,16 +210,15 @@ class SafetyShield(CostRegions):
         state = RobotState(x, y, vx, vy, body.angle, body.angular_velocity)
         reach = model.stopping_reach(state) + 0.1
         goal = self._goal_within(state, base, obs, reach)
-        if (self.perception == "lidar" and not len(goal)
+        if (self.perception == "lidar" and not len(goal.rows)
                 and self._lidar_lower_bound(base, obs) >= reach):
             return action  # nothing any lit bin could hold is within reach: no reconstruction
-        every, every_contact, every_orbit = self._regions(base, obs)
-        refused = presses_without_exit(model, state, goal, every[every_orbit], self.margin,
-                                       self.kernel)
-        if len(refused):  # the goal button is a cost region where a press has no way out
-            every = np.concatenate([every, refused])
-            every_contact = np.concatenate([every_contact, np.ones(len(refused), dtype=bool)])
-            every_orbit = np.concatenate([every_orbit, np.zeros(len(refused), dtype=bool)])
+        seen = self._regions(base, obs)
+        refused = presses_without_exit(model, state, goal.rows, seen.rows[seen.orbit],
+                                       self.margin, self.kernel)
+        if refused.any():  # the goal button is a cost region where a press has no way out
+            seen = seen.plus(goal.where(refused))
+        every, every_contact, every_orbit = seen.rows, seen.contact, seen.orbit
         if not len(every):
             return action
         near = _distances(state, every) - every[:, 2] < reach
@@ -233,7 +229,7 @@ class SafetyShield(CostRegions):
         if self._clearance(model, state, action, regions) >= 0.0:
             return action
         if self.gremlins == "moving" and orbit.any():
-            moved = self._moving(model, state, action, base, obs, every, every_orbit)
+            moved = self._moving(model, state, action, base, obs, seen)
             if moved is action:
                 return action  # kept: the same object, so that callers count no intervention
             if moved is not None:
@@ -248,18 +244,16 @@ class SafetyShield(CostRegions):
                           dtype=np.asarray(action).dtype)
 
     def _goal_within(self, state: RobotState, base: Any, obs: np.ndarray,
-                     reach: float) -> np.ndarray:
+                     reach: float) -> Regions:
         """Under the moving certificate, the goal button's contact regions within ``reach`` of
         the robot (a press it might make now; refused by
         :func:`~semdp.embedded.exit_planning.presses_without_exit` where the way out of the
         pressed button has to cross an orbit disc); none otherwise."""
-        if self.gremlins != "moving":
-            return np.zeros((0, 3))
-        goal = self.goal_button_regions(base, obs)
-        return goal[_distances(state, goal) - goal[:, 2] < reach] if len(goal) else goal
+        goal = self.goal_button(base, obs) if self.gremlins == "moving" else no_regions()
+        return goal.where(_distances(state, goal.rows) - goal.rows[:, 2] < reach)
 
     def _moving(self, model: RobotModel, state: RobotState, action: np.ndarray, base: Any,
-                obs: np.ndarray, regions: np.ndarray, orbit: np.ndarray) -> np.ndarray | None:
+                obs: np.ndarray, seen: Regions) -> np.ndarray | None:
         """``action`` if it is certified as the first step of a plan against the gremlins'
         positions, else the first action of a plan certified from here, else None
         (:mod:`semdp.embedded.moving_certificate`). The plan kept from the last step is tried
@@ -269,26 +263,28 @@ class SafetyShield(CostRegions):
         certified and every plan scores the same depth at its first step: None, so that the
         exit of :mod:`semdp.embedded.exit_planning` takes the robot out (best-effort plans
         ranked by that depth alternated between ways out until the grace period ended)."""
-        if (_distances(state, regions[~orbit]) < regions[~orbit, 2]).any():
+        if self._inside_static(state, seen.where(~seen.orbit)):
             self._plan = None
             return None
-        gremlins = Gremlins(regions[orbit], episode_time(base), model.h * model.substeps)
-        static = np.concatenate([regions[~orbit], self.goal_button_regions(base, obs)])
+        homes = seen.where(seen.orbit)
+        gremlins = Gremlins(homes.rows, episode_time(base), model.h * model.substeps)
+        statics = seen.where(~seen.orbit).plus(self.goal_button(base, obs))
+        static = statics.rows
         kept = self._plan
         first = np.asarray(action, dtype=np.float64)
         for start in (first, None):
             plan = None
-            rows = None if kept is None else self._kept_rows(model, state, start, kept,
-                                                             static, gremlins)
-            if rows is not None:
+            frame = None if kept is None else self._kept_frame(model, state, start, kept,
+                                                               statics, homes, gremlins)
+            if frame is not None:
                 plan = kept
             else:
                 plans = plans_for(model)
                 scores = certified_plans(model, state, start, plans, static, gremlins,
                                          self.margin, self.kernel)
-                plan, rows = choose(plans, scores), gremlins.homes
+                plan, frame = choose(plans, scores), (statics, homes)
             if plan is not None:
-                self._plan_rows = rows
+                self._plan_seen = frame
             if plan is not None and start is not None:
                 self._plan = plan
                 return action
@@ -301,9 +297,23 @@ class SafetyShield(CostRegions):
                 return None  # outside every disc: the static rules' braking and escapes
             self.stats.escaped += 1  # inside an orbit disc: the plan that keeps most clearance
             plan = self._best_effort(model, state, plans, scores, kept, static, gremlins)
-            self._plan_rows = None  # not certified: no rows to keep it against
+            self._plan_seen = None  # not certified: nothing to keep it against
         self._plan = plan.shorter()
         return np.array(plan.action) if plan.hold else model.backup(state)
+
+    def _inside_static(self, state: RobotState, static: Regions) -> bool:
+        """Whether the robot may be inside a static object's region: inside one of today's
+        rows, unless a row the kept plan was certified against holds the same object and the
+        robot is outside that one (the object's region lies in both; a LiDAR region that widened
+        around the robot, 0.03 m outside the button it bounds, ended the kept plan of a trained
+        CarButton1 run)."""
+        inside = _distances(state, static.rows) < static.rows[:, 2]
+        if not inside.any() or self._plan_seen is None or not len(self._plan_seen[0].rows):
+            return bool(inside.any())
+        kept = self._plan_seen[0]
+        outside = _distances(state, kept.rows) >= kept.rows[:, 2]
+        cleared = (static.where(inside).same_objects(kept) & outside[None, :]).any(axis=1)
+        return not cleared.all()
 
     def _best_effort(self, model: RobotModel, state: RobotState, plans: list[Plan],
                      scores: np.ndarray, kept: Plan | None, static: np.ndarray,
@@ -316,7 +326,7 @@ class SafetyShield(CostRegions):
         and went, and a Point rocked in place until the gremlin came round; kept for as long as
         it lasted (up to 50 steps), a Car turned in place inside the disc until it was hit."""
         best = int(np.argmax(scores))
-        if (kept is not None and kept.hold > 0 and self._plan_rows is None
+        if (kept is not None and kept.hold > 0 and self._plan_seen is None
                 and self._kept_for < EXIT_STEPS):
             own = certified_plans(model, state, None, [kept], static, gremlins, self.margin,
                                   self.kernel)[0]
@@ -326,44 +336,32 @@ class SafetyShield(CostRegions):
         self._kept_for = 0
         return plans[best]
 
-    def _kept_rows(self, model: RobotModel, state: RobotState, start: np.ndarray | None,
-                   kept: Plan, static: np.ndarray, gremlins: Gremlins) -> np.ndarray | None:
-        """The gremlin rows the kept plan (after ``start``) is certified against, else None:
-        today's rows, or else the rows it was certified against with today's rows that none
-        of those explains (:meth:`_unexplained`). Each frame's rows hold every gremlin the
-        LiDAR sees, and a gremlin's home does not move, so a plan clear of one frame's rows is
-        clear of those gremlins at every later step; the LiDAR's candidates (every lit bin) come
-        and go as the robot turns, and a plan certified against the last frame's alone was
-        lost in the middle of an orbit disc."""
+    def _kept_frame(self, model: RobotModel, state: RobotState, start: np.ndarray | None,
+                    kept: Plan, statics: Regions, homes: Regions, gremlins: Gremlins
+                    ) -> tuple[Regions, Regions] | None:
+        """The static rows and gremlin homes the kept plan (after ``start``) is certified
+        against, else None: today's, or else those it was certified against with today's rows
+        that none of those explains (:meth:`~semdp.embedded.cost_regions.Regions.unexplained_by`:
+        an object not seen then). Each frame's rows hold every object the LiDAR sees, and
+        neither a static object nor a gremlin's home moves, so a plan clear of one frame's rows
+        is clear of those objects at every later step; the LiDAR's rows (every lit bin) come and
+        go and change their bounds as the robot turns, and a plan certified against the last
+        frame's alone was lost in the middle of an orbit disc (a gremlin candidate gone) or
+        next to a button (its region 0.011 m wider the next step)."""
         points, ends = plan_points(model, state, start, [kept], self.kernel)
 
-        def certified(homes: np.ndarray) -> bool:
-            rows = Gremlins(homes, gremlins.time, gremlins.dt)
-            return clearances(points, ends, state, static, rows, self.margin)[0] >= 0.0
+        def certified(static: Regions, rows: Regions) -> bool:
+            others = Gremlins(rows.rows, gremlins.time, gremlins.dt)
+            return clearances(points, ends, state, static.rows, others, self.margin)[0] >= 0.0
 
-        if certified(gremlins.homes):
-            return gremlins.homes
-        if self._plan_rows is None:
+        if certified(statics, homes):
+            return statics, homes
+        if self._plan_seen is None:
             return None
-        homes = np.concatenate([self._plan_rows, self._unexplained(gremlins.homes)])
-        return homes if certified(homes) else None
-
-    def _unexplained(self, homes: np.ndarray) -> np.ndarray:
-        """The rows of ``homes`` that may hold a gremlin none of the rows the kept plan was
-        certified against holds: all but those whose bound on the home (the radius beyond the
-        orbit disc's: the LiDAR's bearing error) meets a kept row's with the two bounds
-        together under half :data:`GREMLIN_SPACING`. Two gremlins' homes are at least that
-        spacing apart, so a row that meets a kept row of a gremlin seen then cannot hold
-        another one."""
-        assert self._plan_rows is not None
-        if not len(homes) or not len(self._plan_rows):
-            return homes
-        base = self._radii.get("gremlins", 0.0) + self.margin + GREMLIN_ORBIT
-        old = self._plan_rows
-        apart = np.hypot(homes[:, None, 0] - old[None, :, 0], homes[:, None, 1] - old[None, :, 1])
-        bounds = (homes[:, 2] - base)[:, None] + (old[:, 2] - base)[None, :]
-        same = (apart <= bounds + 1e-9) & (bounds < 0.5 * GREMLIN_SPACING)
-        return homes[~same.any(axis=1)]
+        old_static, old_homes = self._plan_seen
+        frame = (old_static.plus(statics.unexplained_by(old_static)),
+                 old_homes.plus(homes.unexplained_by(old_homes)))
+        return frame if certified(*frame) else None
 
     def _escape(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
                 regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray) -> int:

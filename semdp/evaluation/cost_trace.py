@@ -121,7 +121,8 @@ def filter_fields(record: FilterRecord) -> dict[str, Any]:
 def _near_regions(shield: SafetyShield, record: FilterRecord, x: float, y: float
                   ) -> list[list[float]]:
     """The filter's regions (rows ``[x, y, R, contact]``) within :data:`NEAR` of their edge."""
-    regions, contact, _ = shield._regions(record.base, record.obs)
+    seen = shield._regions(record.base, record.obs)
+    regions, contact = seen.rows, seen.contact
     if not len(regions):
         return []
     near = np.hypot(regions[:, 0] - x, regions[:, 1] - y) - regions[:, 2] < NEAR
