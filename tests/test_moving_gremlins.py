@@ -199,8 +199,8 @@ def test_plans_do_not_run_into_the_goal_button(monkeypatch: pytest.MonkeyPatch) 
     with no goal-button region the same command presses it."""
     presses, cost = _press_from_inside_a_disc()
     assert presses == 0.0 and cost == 0.0
-    monkeypatch.setattr(SafetyShield, "goal_button_regions",
-                        lambda self, base, obs: np.zeros((0, 3)))
+    monkeypatch.setattr(SafetyShield, "_goal_button_rows",
+                        lambda self, base, obs: (np.zeros((0, 3)), np.zeros(0, bool)))
     presses, _ = _press_from_inside_a_disc()
     assert presses >= 1.0
 
@@ -299,13 +299,15 @@ def test_a_car_keeps_its_plan_when_the_lidar_candidates_change() -> None:
     assert stats["cost_steps_total"] == 0
 
 
-def _rows(rows: list[list[float]], spread: list[float], keepout: float | list[float]
-          ) -> Regions:
-    """Hand-placed :class:`Regions` (flags irrelevant to the identity of their objects)."""
+def _rows(rows: list[list[float]], spread: list[float], keepout: float | list[float],
+          own: bool | list[bool] = True) -> Regions:
+    """Hand-placed :class:`Regions` (contact and orbit flags irrelevant to the identity of
+    their objects)."""
     m = len(rows)
     return Regions(np.array(rows, dtype=float).reshape(-1, 3), np.zeros(m, bool),
                    np.zeros(m, bool), np.array(spread, dtype=float),
-                   np.broadcast_to(np.asarray(keepout, dtype=float), (m,)).copy())
+                   np.broadcast_to(np.asarray(keepout, dtype=float), (m,)).copy(),
+                   np.broadcast_to(np.asarray(own, dtype=bool), (m,)).copy())
 
 
 def test_only_rows_the_kept_rows_cannot_explain_are_added() -> None:
@@ -319,6 +321,9 @@ def test_only_rows_the_kept_rows_cannot_explain_are_added() -> None:
                   [0.15, 0.15, 0.15, 0.0, np.inf], 0.4)
     # 0.5 and 0.75 < 0.8: the same home; 0.85, 1.3 and inf >= 0.8: maybe another gremlin
     np.testing.assert_array_equal(today.unexplained_by(kept).rows, today.rows[2:])
+    # a kept row that may be a neighbour's alias holds no object to be the same as
+    alias = kept._replace(own=np.zeros(1, bool))
+    np.testing.assert_array_equal(today.unexplained_by(alias).rows, today.rows)
     hazard = _rows([[0.0, 0.0, 0.3]], [0.05], 0.18)
     button = _rows([[0.2, 0.0, 0.4], [0.35, 0.0, 0.4]], [0.1, 0.1], 0.2)
     # 0.35 < 0.38 = 0.18 + 0.2 (no button can be that close to the hazard), 0.5 >= 0.38
@@ -329,7 +334,7 @@ def test_only_rows_the_kept_rows_cannot_explain_are_added() -> None:
 #: A trained CarButton1 run's kept plan one step after it was certified, with both steps'
 #: static rows and gremlin homes (rows, spreads, keepouts) as the filter built them
 #: (outputs/reference/semdp_button1_moving/COMMAND.md, "Training episodes with cost").
-KEPT_FRAMES = Path(__file__).resolve().parent / "data" / "car_kept_plan_frames.json"
+KEPT_FRAMES = Path(__file__).resolve().parent / "data" / "kept_plan_frames.json"
 
 
 def _kept_frames() -> tuple[dict, dict]:
@@ -372,7 +377,7 @@ def test_a_car_keeps_its_plan_when_a_static_region_widens() -> None:
                                           shield.margin)[0]
     assert -0.01 < today < 0.0  # the hole: today's rows alone refuse the plan
     added = now["statics"].unexplained_by(then["statics"]).rows
-    assert np.hypot(*(added[:, :2] - (0.845, -0.489)).T).min() > 1.0  # the button is not added
+    assert np.hypot(*(added[:, :2] - (0.845, -0.489)).T).min() > 0.1  # the button's row is not
     _, _, frame = _kept_check(shield, then, now)
     assert frame is not None
 
@@ -448,9 +453,9 @@ def test_a_region_that_widens_around_the_car_does_not_end_its_kept_plan() -> Non
     0.033 m outside a wrong button's contact region, its plan certified against two rows of
     that button; the next LiDAR row of the button is 0.056 m wider than the button's region and
     holds the Car, and the moving certificate gave up its plan ("inside a static region"),
-    chattered and was hit by a gremlin 63 steps later. A kept row holds the same button (the
-    spreads and the distance under the two buttons' keepouts) and the Car is outside it: not
-    inside. Without a kept plan, or with a planted row that no kept row explains, or with the
+    chattered and was hit by a gremlin 63 steps later. A kept row of the button's own (read
+    above both neighbours) holds the same button (the spreads and the distance under the two
+    buttons' keepouts) and the Car is outside it: not inside. Without a kept plan, or with a planted row that no kept row explains, or with the
     Car inside the kept row too: inside."""
     fx = json.loads(KEPT_FRAMES.read_text())["region_widens"]
     state = RobotState(*fx["state"])
@@ -469,6 +474,26 @@ def test_a_region_that_widens_around_the_car_does_not_end_its_kept_plan() -> Non
     holding = kept.where(np.hypot(kept.rows[:, 0] - button[0], kept.rows[:, 1] - button[1])
                          < 0.15)
     assert len(holding.rows)
-    grown = holding._replace(rows=holding.rows + [0.0, 0.0, 0.1])  # the Car inside it too
+    grown = holding._replace(rows=holding.rows + np.array([0.0, 0.0, 0.1]))  # the Car inside it too
     shield._plan_seen = (grown, _rows([], [], 0.4))
     assert shield._inside_static(state, today)
+
+
+def test_an_alias_row_does_not_clear_a_button_the_robot_pressed() -> None:
+    """``semdp-bench safety`` (MassButton1, goal-seeking subgoals, seed 34000): the Mass
+    presses the goal button, inside the button's own rows; a kept row of the goal LiDAR 0.095 m
+    off the button is a neighbour bin's alias (no object of its own) and the Mass is outside it.
+    Taken for the button, it cleared the Mass, which followed its plan and rested on the
+    button, a wrong one once the goal moved, until its grace period ended (``cost_buttons``).
+    An alias row explains nothing: inside."""
+    fx = json.loads(KEPT_FRAMES.read_text())["mass_pressed"]
+    state = RobotState(*fx["state"])
+    kept, today = _rows(**fx["kept_statics"]), _rows(**fx["today_statics"])
+    shield = SafetyShield(gremlins="moving")
+    shield._plan_seen = (kept, _rows([], [], 0.4))
+    assert shield._inside_static(state, today)
+    near = np.hypot(kept.rows[:, 0] - fx["button"][0], kept.rows[:, 1] - fx["button"][1]) < 0.2
+    outside = np.hypot(kept.rows[:, 0] - state.x, kept.rows[:, 1] - state.y) >= kept.rows[:, 2]
+    assert (near & outside & ~kept.own).any() and not (near & outside & kept.own).any()
+    shield._plan_seen = (kept._replace(own=np.ones(len(kept.own), bool)), _rows([], [], 0.4))
+    assert not shield._inside_static(state, today)  # every row taken for an object's own

@@ -263,8 +263,8 @@ def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_
     shield = SafetyShield(margin=0.05, perception="lidar", kinds=("hazards", "vases"),
                           lidar_bearing_bound="bin")
     shield.bind(base)
-    regions, contact, orbit, spread, keepout = shield._regions(base, obs)
-    expected, touches, keepouts = [], [], []
+    regions, contact, orbit, spread, keepout, own = shield._regions(base, obs)
+    expected, touches, keepouts, owns = [], [], [], []
     chord = 2.0 * math.sin(math.pi / 32)  # a half bin's bearing error per metre of range
     for kind in ("hazards", "vases"):
         found = obstacles_from_lidar(obs[base.obs_slices[f"{kind}_lidar"]], base.robot_position,
@@ -274,6 +274,9 @@ def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_
         expected.append(np.column_stack([found, grow]))
         touches += [kind == "vases"] * len(found)
         keepouts += [{"hazards": 0.18, "vases": 0.15}[kind]] * len(found)  # the level's spec
+        lidar = obs[base.obs_slices[f"{kind}_lidar"]].astype(float)  # an own bin: above both
+        owns += [bool(s > lidar[i - 1] and s > lidar[(i + 1) % 16])  # neighbours, else an alias
+                 for i, s in enumerate(lidar) if s > 1e-6]
     expected = np.vstack(expected)
     assert len(expected) >= 4  # both kinds lit, several bins each
     np.testing.assert_allclose(regions, expected, rtol=0, atol=1e-12)
@@ -282,3 +285,4 @@ def test_bounded_lidar_regions_sit_where_the_lidar_reconstruction_puts_each_lit_
     np.testing.assert_allclose(spread, chord * np.linalg.norm(
         expected[:, :2] - np.asarray(base.robot_position), axis=1), rtol=0, atol=1e-12)
     assert keepout.tolist() == keepouts
+    assert own.tolist() == owns and 0 < sum(owns) < len(owns)

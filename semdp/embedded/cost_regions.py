@@ -69,6 +69,10 @@ class Regions(NamedTuple):
     #: ``(m,)`` m: the placement keepout of the row's kind (two objects' centres are at least
     #: the sum of their keepouts apart; :func:`placement_keepout`).
     keepout: np.ndarray
+    #: ``(m,)``: the row surely holds an object (a LiDAR bin read above both neighbours, or the
+    #: simulator); other rows may hold only a neighbour's alias
+    #: (:func:`~semdp.embedded.lidar_bounds.bin_regions`).
+    own: np.ndarray
 
     def where(self, mask: np.ndarray) -> Regions:
         """The rows where ``mask`` holds."""
@@ -79,15 +83,16 @@ class Regions(NamedTuple):
         return Regions(*(np.concatenate([a, b]) for a, b in zip(self, other, strict=True)))
 
     def same_objects(self, seen: Regions) -> np.ndarray:
-        """``(m, n)``: whether row ``i`` holds the object that ``seen``'s row ``j`` holds
-        (objects that do not move: static kinds, gremlins' homes). Each row holds an object
-        whose centre lies within its spread of the row's centre; the two objects are then at
-        most ``spread_i + |c_i - c_j| + spread_j`` apart, and two different objects at least
+        """``(m, n)``: whether an object row ``i`` may hold is the one ``seen``'s row ``j``
+        holds (objects that do not move: static kinds, gremlins' homes). Row ``j`` must be an
+        object's own (:attr:`own`: an alias row holds no object to be); a row's object lies
+        within its spread of its centre, so the two objects are at most
+        ``spread_i + |c_i - c_j| + spread_j`` apart, and two different objects at least
         ``keepout_i + keepout_j``: below that, they are one."""
         apart = np.hypot(self.rows[:, None, 0] - seen.rows[None, :, 0],
                          self.rows[:, None, 1] - seen.rows[None, :, 1])
-        return (self.spread[:, None] + apart + seen.spread[None, :]
-                < self.keepout[:, None] + seen.keepout[None, :])
+        return (seen.own[None, :] & (self.spread[:, None] + apart + seen.spread[None, :]
+                                     < self.keepout[:, None] + seen.keepout[None, :]))
 
     def unexplained_by(self, seen: Regions) -> Regions:
         """The rows that may hold an object none of ``seen``'s rows holds
@@ -100,7 +105,7 @@ class Regions(NamedTuple):
 def no_regions() -> Regions:
     """No rows."""
     flags = np.zeros(0, dtype=bool)
-    return Regions(np.zeros((0, 3)), flags, flags, np.zeros(0), np.zeros(0))
+    return Regions(np.zeros((0, 3)), flags, flags, np.zeros(0), np.zeros(0), flags)
 
 
 def placement_keepout(base: Any, kind: str) -> float:
@@ -161,7 +166,8 @@ class CostRegions:
         """:meth:`cost_regions` with what the filter knows of each row (:class:`Regions`)."""
         if self.perception == "lidar" and self.lidar_bearing_bound != "none":
             return self._bounded_lidar_regions(base, obs)
-        spread = 0.0 if self.perception == "gt" else math.inf  # "none": not bounded
+        gt = self.perception == "gt"
+        spread = 0.0 if gt else math.inf  # "none": not bounded
         out = no_regions()
         for kind in self.kinds:
             if kind not in self._radii:
@@ -171,7 +177,8 @@ class CostRegions:
             if len(found):
                 found = np.array(found, dtype=np.float64)
                 found[:, 2] = self._radii[kind] + self.margin + self._orbit(base, kind)[1]
-                out = out.plus(_rows_of(base, kind, found, np.full(len(found), spread)))
+                out = out.plus(_rows_of(base, kind, found, np.full(len(found), spread),
+                                        np.full(len(found), gt)))
         return out
 
     def _lidar_channels(self, base: Any, obs: np.ndarray, kinds: tuple[str, ...] | None = None
@@ -202,19 +209,19 @@ class CostRegions:
         out = no_regions()
         bound = self.lidar_bearing_bound
         for kind, radius, shift, frame in self._lidar_channels(base, obs):
-            found = np.array(bin_regions(frame, bound), dtype=np.float64).reshape(-1, 3)
+            found = np.array(bin_regions(frame, bound), dtype=np.float64).reshape(-1, 4)
             if len(found):
                 grow = found[:, 2].copy()
                 found[:, :2] += shift
                 found[:, 2] = radius + grow
-                out = out.plus(_rows_of(base, kind, found, grow))
+                out = out.plus(_rows_of(base, kind, found[:, :3], grow, found[:, 3] > 0.5))
         return out
 
     def goal_button(self, base: Any, obs: np.ndarray) -> Regions:
         """:meth:`goal_button_regions` as :class:`Regions` (contact rows of the buttons)."""
-        rows = self.goal_button_regions(base, obs)
+        rows, own = self._goal_button_rows(base, obs)
         spread = rows[:, 2] - (self._radii.get("buttons", 0.0) + self.margin)
-        return _rows_of(base, "buttons", rows, spread)
+        return _rows_of(base, "buttons", rows, spread, own)
 
     def goal_button_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """``(m, 3)`` rows ``[x, y, R]``: the goal button's contact region (Button tasks; no
@@ -222,18 +229,25 @@ class CostRegions:
         for ``none``), or from the simulator with ground truth. Not a cost region: the plans
         of the moving-gremlin certificate, which model no contacts, must not run into it
         (:mod:`semdp.embedded.moving_certificate`)."""
+        return self._goal_button_rows(base, obs)[0]
+
+    def _goal_button_rows(self, base: Any, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`goal_button_regions` and, per row, whether it is an object's own
+        (:attr:`Regions.own`)."""
         if "buttons" not in self._radii or "goal_lidar" not in base.obs_slices:
-            return np.zeros((0, 3))
+            return np.zeros((0, 3)), np.zeros(0, dtype=bool)
         radius = self._radii["buttons"] + self.margin
         if self.perception == "gt":
             x, y = (float(v) for v in base.goal_position[:2])
-            return np.array([[x, y, radius]])
+            return np.array([[x, y, radius]]), np.ones(1, dtype=bool)
         frame = LidarFrame(obs[base.obs_slices["goal_lidar"]],
                            np.asarray(base.robot_position, dtype=np.float64),
                            float(base.robot_heading))
         bound = "bin" if self.lidar_bearing_bound == "none" else self.lidar_bearing_bound
-        rows = [(x, y, radius + grow) for x, y, grow in bin_regions(frame, bound)]
-        return np.array(rows, dtype=np.float64).reshape(-1, 3)
+        found = bin_regions(frame, bound)
+        rows = [(x, y, radius + grow) for x, y, grow, _ in found]
+        return (np.array(rows, dtype=np.float64).reshape(-1, 3),
+                np.array([own for *_, own in found], dtype=bool))
 
     def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
         """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of
@@ -275,9 +289,11 @@ class CostRegions:
         return bound
 
 
-def _rows_of(base: Any, kind: str, rows: np.ndarray, spread: np.ndarray) -> Regions:
-    """``rows`` ``(m, 3)`` of objects of ``kind`` with their ``spread`` as :class:`Regions`."""
+def _rows_of(base: Any, kind: str, rows: np.ndarray, spread: np.ndarray, own: np.ndarray
+             ) -> Regions:
+    """``rows`` ``(m, 3)`` of objects of ``kind`` with their ``spread`` and :attr:`own` flags
+    as :class:`Regions`."""
     m = len(rows)
     return Regions(rows, np.full(m, kind in CONTACT_KINDS), np.full(m, kind == "gremlins"),
                    np.asarray(spread, dtype=np.float64),
-                   np.full(m, placement_keepout(base, kind)))
+                   np.full(m, placement_keepout(base, kind)), np.asarray(own, dtype=bool))

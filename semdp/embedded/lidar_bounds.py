@@ -52,16 +52,19 @@ RANGE_TOLERANCE = 1e-6
 MIN_READING = 1e-6
 
 
-def bin_regions(frame: LidarFrame, bound: str) -> list[tuple[float, float, float]]:
-    """``(x, y, grow)`` of every lit bin's candidate object (world frame): where the object
+def bin_regions(frame: LidarFrame, bound: str) -> list[tuple[float, float, float, bool]]:
+    """``(x, y, grow, own)`` of every lit bin's candidate object (world frame): where the object
     may be and by how much its cost region must grow to hold it, under ``bound`` (``"aliasing"``
-    or ``"bin"``, module docstring).
+    or ``"bin"``, module docstring), and whether the bin surely holds an object: its reading
+    is above both neighbours' (an alias is at most its source's reading, which is at most the
+    source bin's), so it is an object's own. Other lit bins may hold only an alias of a
+    neighbour's object (a candidate all the same).
 
     ``"bin"``: each point is where :func:`~sims.safety_gym.perception.obstacles_from_lidar`
     (``peaks_only=False``) puts the bin's object, computed with the same operations but without
     that function's input checks and arrays (this runs at most low-level steps near an
     obstacle), grown by the whole bin's bearing error."""
-    out: list[tuple[float, float, float]] = []
+    out: list[tuple[float, float, float, bool]] = []
     width = 2.0 * math.pi / BINS
     px, py = (float(v) for v in frame.position)
     heading = float(frame.heading)
@@ -72,6 +75,7 @@ def bin_regions(frame: LidarFrame, bound: str) -> list[tuple[float, float, float
         if reading <= MIN_READING:
             continue
         dist = (1.0 - reading) * LIDAR_RANGE
+        own = reading > whole[i - 1] and reading > whole[(i + 1) % BINS]
         if aliasing:
             low = max(0.0, 1.0 - whole[i - 1] / reading - ALIAS_TOLERANCE)
             high = min(1.0, whole[(i + 1) % BINS] / reading + ALIAS_TOLERANCE)
@@ -79,10 +83,10 @@ def bin_regions(frame: LidarFrame, bound: str) -> list[tuple[float, float, float
                 continue  # no object's own bin: an aliasing ghost
             angle = heading + (i + 0.5 * (low + high)) * width
             grow = 2.0 * dist * math.sin(0.25 * (high - low) * width) + RANGE_TOLERANCE
-            out.append((px + dist * math.cos(angle), py + dist * math.sin(angle), grow))
+            out.append((px + dist * math.cos(angle), py + dist * math.sin(angle), grow, own))
         else:
             angle = heading + (i + 0.5) * width
             x, y = px + dist * math.cos(angle), py + dist * math.sin(angle)
             dx, dy = x - px, y - py
-            out.append((x, y, BEARING_ERROR_PER_METRE * math.sqrt(dx * dx + dy * dy)))
+            out.append((x, y, BEARING_ERROR_PER_METRE * math.sqrt(dx * dx + dy * dy), own))
     return out

@@ -303,10 +303,12 @@ class SafetyShield(CostRegions):
 
     def _inside_static(self, state: RobotState, static: Regions) -> bool:
         """Whether the robot may be inside a static object's region: inside one of today's
-        rows, unless a row the kept plan was certified against holds the same object and the
-        robot is outside that one (the object's region lies in both; a LiDAR region that widened
-        around the robot, 0.03 m outside the button it bounds, ended the kept plan of a trained
-        CarButton1 run)."""
+        rows, unless a row the kept plan was certified against surely holds an object
+        (:attr:`~semdp.embedded.cost_regions.Regions.own`), the one today's row may hold
+        (:meth:`~semdp.embedded.cost_regions.Regions.same_objects`), and the robot is outside
+        it (the object's region lies in it). A LiDAR region that widened around a Car 0.033 m
+        outside the button it bounds ended the Car's kept plan; an alias row (no object) next
+        to a button a Mass had just pressed must not clear the button's own row."""
         inside = _distances(state, static.rows) < static.rows[:, 2]
         if not inside.any() or self._plan_seen is None or not len(self._plan_seen[0].rows):
             return bool(inside.any())
