@@ -259,9 +259,10 @@ class SafetyShield(CostRegions):
         (:mod:`semdp.embedded.moving_certificate`). The plan kept from the last step is tried
         alone first, each time: one rollout instead of the whole set.
 
-        Inside a static region (the button just pressed, once the goal moved) no plan is
-        certified and every plan scores the same depth at its first step: None, so that the
-        exit of :mod:`semdp.embedded.exit_planning` takes the robot out (best-effort plans
+        Deeper than the margin in a static region (the button just pressed, once the goal
+        moved; :meth:`_inside_static`) no plan is certified and every plan scores the same
+        depth at its first step: None, so that the exit of
+        :mod:`semdp.embedded.exit_planning` takes the robot out (best-effort plans
         ranked by that depth alternated between ways out until the grace period ended)."""
         if self._inside_static(state, seen.where(~seen.orbit)):
             self._plan = None
@@ -302,18 +303,22 @@ class SafetyShield(CostRegions):
         return np.array(plan.action) if plan.hold else model.backup(state)
 
     def _inside_static(self, state: RobotState, static: Regions) -> bool:
-        """Whether the robot may be inside a static object's region: inside one of today's
-        rows, unless a row the kept plan was certified against surely holds an object
+        """Whether the robot may be touching a static object: deeper than the margin in one
+        of today's rows (the margin is no part of the object's region; within it the plans'
+        depth floor, :func:`~semdp.embedded.moving_certificate.clearances`, keeps them out of
+        the object), unless a row the kept plan was certified against surely holds an object
         (:attr:`~semdp.embedded.cost_regions.Regions.own`), the one today's row may hold
-        (:meth:`~semdp.embedded.cost_regions.Regions.same_objects`), and the robot is outside
-        it (the object's region lies in it). A LiDAR region that widened around a Car 0.033 m
-        outside the button it bounds ended the Car's kept plan; an alias row (no object) next
-        to a button a Mass had just pressed must not clear the button's own row."""
-        inside = _distances(state, static.rows) < static.rows[:, 2]
+        (:meth:`~semdp.embedded.cost_regions.Regions.same_objects`), and the robot is no
+        deeper than the margin in it (the object's region lies in it). A Car that drifted
+        0.01 m into a button's margin, and one that a button's LiDAR region widened around
+        0.033 m outside the button, gave up their kept plans inside orbit discs and were hit;
+        an alias row (no object) next to a button a Mass had just pressed must not clear the
+        button's own row."""
+        inside = _distances(state, static.rows) < static.rows[:, 2] - self.margin
         if not inside.any() or self._plan_seen is None or not len(self._plan_seen[0].rows):
             return bool(inside.any())
         kept = self._plan_seen[0]
-        outside = _distances(state, kept.rows) >= kept.rows[:, 2]
+        outside = _distances(state, kept.rows) >= kept.rows[:, 2] - self.margin
         cleared = (static.where(inside).same_objects(kept) & outside[None, :]).any(axis=1)
         return not cleared.all()
 
