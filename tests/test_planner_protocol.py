@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from semdp.embedded.straight import StraightLinePlanner
-from solvers.planner import LMSettings, Planner, PlanResult, SafeTrajectoryPlanner, compare
+from solvers.planner import (
+    LMSettings,
+    Planner,
+    PlanResult,
+    ProblemSettings,
+    SafeTrajectoryPlanner,
+    compare,
+)
 from solvers.planner.backends import Backend
 
 PLANNERS = {
@@ -50,16 +57,22 @@ def test_a_planners_part_given_as_a_planner_is_refused_naming_it(part: str) -> N
         compare([0.0, 0.0], [1.0, 0.0], planners={"lm": given})
 
 
-def test_straight_planner_has_no_rescue() -> None:
+def test_straight_planner_has_no_solver() -> None:
     assert StraightLinePlanner(rescue_backend=None).rescue_backend is None
-    with pytest.raises(ValueError, match="the straight-line ablation planner has no rescue"):
+    with pytest.raises(ValueError, match="no solver: rescue_backend must be None"):
         StraightLinePlanner(rescue_backend="ipopt")
+    with pytest.raises(ValueError, match="no solver: backend must be None"):
+        StraightLinePlanner(backend="lm")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="problem must be a ProblemSettings"):
+        StraightLinePlanner(problem={"n_waypoints": 3})  # type: ignore[arg-type]
 
 
 def test_straight_plan_reports_its_clearance_along_the_segment() -> None:
-    plan = StraightLinePlanner(n_waypoints=3).plan([0, 0], [2, 0], [[1.0, 0.6, 0.1]])
+    planner = StraightLinePlanner(ProblemSettings(n_waypoints=3))
+    plan = planner.plan([0, 0], [2, 0], [[1.0, 0.6, 0.1]])
     assert plan.reached_subgoal and plan.objective == 0.0 and plan.backend == "straight"
     assert plan.min_clearance == pytest.approx(0.6 - 0.1)  # the middle waypoint is at (1, 0)
     assert plan.min_clearance_continuous == pytest.approx(0.5)
     assert plan.feasible  # 0.5 >= eps' = 0.5
-    assert not StraightLinePlanner(clearance=0.6).plan([0, 0], [2, 0], [[1.0, 0.6, 0.1]]).feasible
+    strict = StraightLinePlanner(ProblemSettings(clearance=0.6))
+    assert not strict.plan([0, 0], [2, 0], [[1.0, 0.6, 0.1]]).feasible

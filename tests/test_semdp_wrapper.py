@@ -17,7 +17,7 @@ from semdp.embedded.straight import StraightLinePlanner
 from semdp.embedded.tracking import ego_to_world, select_tracking_index, world_to_ego
 from semdp.embedded.wrapper import SafetyEmbeddedEnv
 from semdp.envs import make_env
-from solvers.planner import LMSettings, SafeTrajectoryPlanner
+from solvers.planner import LMSettings, ProblemSettings, SafeTrajectoryPlanner
 
 CLEARANCE = 0.5
 
@@ -181,7 +181,8 @@ def test_refined_perception_reaches_the_planner_and_leaves_the_filter_its_bound(
         assert semdp.shield is not None and semdp.shield.perception == "lidar"
 
 def test_straight_planner_ignores_obstacles_and_reports_clearance() -> None:
-    plan = StraightLinePlanner(n_waypoints=5).plan([0, 0], [2, 0], [[1.0, 0.0, 0.0]])
+    planner = StraightLinePlanner(ProblemSettings(n_waypoints=5))
+    plan = planner.plan([0, 0], [2, 0], [[1.0, 0.0, 0.0]])
     assert np.allclose(plan.waypoints[:, 0], [0, 0.5, 1.0, 1.5, 2.0])
     assert plan.min_clearance == 0.0 and not plan.feasible
 

@@ -25,31 +25,37 @@ class StraightLinePlanner:
     """Straight line from start to subgoal (no obstacle avoidance).
 
     Args:
-        n_waypoints: points on the segment, the start included (default: the planning
-            problem's, :class:`~solvers.planner.ProblemSettings`).
-        clearance: only used to fill ``feasible`` (every waypoint >= clearance + r away;
-            default: the planning problem's eps').
-        rescue_backend: must be None; accepted so that every ``conf/planner`` entry shares the
-            key (the optimising planners take ``"ipopt"`` there).
+        problem: the planning problem (:class:`~solvers.planner.ProblemSettings`, its defaults
+            if None), as the optimising planners take it; of it the line uses ``n_waypoints``
+            (points on the segment, the start included) and ``clearance`` (only to fill
+            ``feasible``: every waypoint >= clearance + r away).
+        backend, rescue_backend: must be None; accepted so that every ``conf/planner`` entry
+            shares the keys (the optimising planners name their backend and ``"ipopt"``).
 
     Raises:
-        ValueError: ``n_waypoints < 2`` or a ``rescue_backend``.
+        ValueError: a ``backend`` or a ``rescue_backend``.
     """
 
-    def __init__(
-        self, n_waypoints: int = ProblemSettings.n_waypoints,
-        clearance: float = ProblemSettings.clearance, rescue_backend: str | None = None,
-    ) -> None:
-        if n_waypoints < 2:
-            raise ValueError(f"n_waypoints must be >= 2, got {n_waypoints}")
-        if rescue_backend is not None:
-            raise ValueError(
-                "the straight-line ablation planner has no rescue: rescue_backend must be None, "
-                f"got {rescue_backend!r}"
-            )
-        self.n_waypoints = int(n_waypoints)
-        self.clearance = float(clearance)
+    def __init__(self, problem: ProblemSettings | None = None, backend: None = None,
+                 rescue_backend: str | None = None) -> None:
+        for name, value in (("backend", backend), ("rescue_backend", rescue_backend)):
+            if value is not None:
+                raise ValueError(f"the straight-line ablation planner has no solver: {name} "
+                                 f"must be None, got {value!r}")
+        self.problem = ProblemSettings() if problem is None else problem
+        if not isinstance(self.problem, ProblemSettings):
+            raise ValueError(f"problem must be a ProblemSettings, got {self.problem!r}")
         self.rescue_backend = None
+
+    @property
+    def n_waypoints(self) -> int:
+        """Points on the segment, the start included."""
+        return self.problem.n_waypoints
+
+    @property
+    def clearance(self) -> float:
+        """eps' (m): the clearance ``feasible`` reports against."""
+        return self.problem.clearance
 
     def plan(
         self,
