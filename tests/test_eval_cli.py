@@ -227,7 +227,7 @@ def test_planner_shorthand_composes_the_node_and_keeps_the_runs_clearance_and_re
     assert node.problem.clearance == 0.6 and node.rescue_backend == "ipopt"  # the Car's rescue
     assert saved.env.eval_wrapper.planner.backend.adaptive is True  # the saved config is untouched
     straight = edited_config(saved, parse_arguments(["planner=straight"])).env.eval_wrapper
-    assert straight.planner.rescue_backend is None and straight.planner.clearance == 0.6
+    assert straight.planner.rescue_backend is None and straight.planner.problem.clearance == 0.6
     both = edited_config(saved, parse_arguments(["clearance=0.25", "perception=gt",
                                                  "lambda=fixed"])).env.eval_wrapper
     assert (both.planner.problem.clearance, both.perception, both.planner.backend.adaptive) == (

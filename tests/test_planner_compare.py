@@ -52,7 +52,7 @@ def test_obstacle_on_the_straight_line_every_certified_plan_keeps_clearance(cont
 def test_straight_line_planner_is_compared_too() -> None:
     planners = {
         "lm": SafeTrajectoryPlanner(backend="lm"),
-        "straight": StraightLinePlanner(n_waypoints=3),  # a waypoint at the centre
+        "straight": StraightLinePlanner(ProblemSettings(n_waypoints=3)),  # a waypoint at the centre
     }
     comparison = compare([0.0, 0.0], [2.0, 0.0], [[1.0, 0.0, 0.1]], planners=planners, repeats=1)
     straight = comparison["straight"]

@@ -9,7 +9,7 @@ with the planner as a full ``conf/planner`` node (``_target_``, ``problem``, ``b
 - ``planner=<name>``: ``conf/planner/<name>.yaml`` composed with Hydra's compose API; the run's
   clearance is kept, and its ``rescue_backend`` too when the planner class is the same;
 - ``clearance=<eps'>``: the planner's clearance (``problem.clearance``; ``clearance`` of a
-  planner without a ``problem`` node, the straight line);
+  planner node saved without a ``problem`` node);
 - ``lambda=fixed|adaptive``: ``backend.adaptive`` of an LM planner (thesis App. B.2.3);
 - ``perception=lidar|lidar_refined|gt``: the wrapper's ``perception`` (the filter keeps its
   own).
