@@ -17,7 +17,7 @@ from shielded_env import ShieldedEnv
 
 import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded import moving_certificate
-from semdp.embedded.cost_regions import Regions
+from semdp.embedded.cost_regions import Regions, no_regions
 from semdp.embedded.exit_planning import EXIT_STEPS, exit_reach, presses_without_exit
 from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, certified_plans, plans_for
 from semdp.embedded.perception import gremlin_offset, gremlin_offsets
@@ -199,8 +199,7 @@ def test_plans_do_not_run_into_the_goal_button(monkeypatch: pytest.MonkeyPatch) 
     with no goal-button region the same command presses it."""
     presses, cost = _press_from_inside_a_disc()
     assert presses == 0.0 and cost == 0.0
-    monkeypatch.setattr(SafetyShield, "_goal_button_rows",
-                        lambda self, base, obs: (np.zeros((0, 3)), np.zeros(0, bool)))
+    monkeypatch.setattr(SafetyShield, "goal_button", lambda self, base, obs: no_regions())
     presses, _ = _press_from_inside_a_disc()
     assert presses >= 1.0
 

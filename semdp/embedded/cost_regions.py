@@ -217,37 +217,32 @@ class CostRegions:
                 out = out.plus(_rows_of(base, kind, found[:, :3], grow, found[:, 3] > 0.5))
         return out
 
-    def goal_button(self, base: Any, obs: np.ndarray) -> Regions:
-        """:meth:`goal_button_regions` as :class:`Regions` (contact rows of the buttons)."""
-        rows, own = self._goal_button_rows(base, obs)
-        spread = rows[:, 2] - (self._radii.get("buttons", 0.0) + self.margin)
-        return _rows_of(base, "buttons", rows, spread, own)
-
     def goal_button_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
         """``(m, 3)`` rows ``[x, y, R]``: the goal button's contact region (Button tasks; no
         rows elsewhere) from the goal LiDAR channel under :attr:`lidar_bearing_bound` (``bin``
         for ``none``), or from the simulator with ground truth. Not a cost region: the plans
         of the moving-gremlin certificate, which model no contacts, must not run into it
         (:mod:`semdp.embedded.moving_certificate`)."""
-        return self._goal_button_rows(base, obs)[0]
+        return self.goal_button(base, obs).rows
 
-    def _goal_button_rows(self, base: Any, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`goal_button_regions` and, per row, whether it is an object's own
-        (:attr:`Regions.own`)."""
+    def goal_button(self, base: Any, obs: np.ndarray) -> Regions:
+        """:meth:`goal_button_regions` as :class:`Regions` (contact rows of the buttons, the
+        bins' allowances their spreads)."""
         if "buttons" not in self._radii or "goal_lidar" not in base.obs_slices:
-            return np.zeros((0, 3)), np.zeros(0, dtype=bool)
+            return no_regions()
         radius = self._radii["buttons"] + self.margin
         if self.perception == "gt":
             x, y = (float(v) for v in base.goal_position[:2])
-            return np.array([[x, y, radius]]), np.ones(1, dtype=bool)
+            return _rows_of(base, "buttons", np.array([[x, y, radius]]), np.zeros(1),
+                            np.ones(1, dtype=bool))
         frame = LidarFrame(obs[base.obs_slices["goal_lidar"]],
                            np.asarray(base.robot_position, dtype=np.float64),
                            float(base.robot_heading))
         bound = "bin" if self.lidar_bearing_bound == "none" else self.lidar_bearing_bound
-        found = bin_regions(frame, bound)
-        rows = [(x, y, radius + grow) for x, y, grow, _ in found]
-        return (np.array(rows, dtype=np.float64).reshape(-1, 3),
-                np.array([own for *_, own in found], dtype=bool))
+        found = np.array(bin_regions(frame, bound), dtype=np.float64).reshape(-1, 4)
+        grow = found[:, 2].copy()
+        found[:, 2] = radius + grow
+        return _rows_of(base, "buttons", found[:, :3], grow, found[:, 3] > 0.5)
 
     def _lidar_lower_bound(self, base: Any, obs: np.ndarray) -> float:
         """A lower bound of every LiDAR region's ``distance - R`` from the nearest lit bin of

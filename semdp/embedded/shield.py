@@ -209,7 +209,8 @@ class SafetyShield(CostRegions):
         (x, y), (vx, vy) = body.position, body.velocity
         state = RobotState(x, y, vx, vy, body.angle, body.angular_velocity)
         reach = model.stopping_reach(state) + 0.1
-        goal = self._goal_within(state, base, obs, reach)
+        goal_button = self.goal_button(base, obs) if self.gremlins == "moving" else None
+        goal = self._goal_within(state, goal_button, reach)
         if (self.perception == "lidar" and not len(goal.rows)
                 and self._lidar_lower_bound(base, obs) >= reach):
             return action  # nothing any lit bin could hold is within reach: no reconstruction
@@ -229,7 +230,8 @@ class SafetyShield(CostRegions):
         if self._clearance(model, state, action, regions) >= 0.0:
             return action
         if self.gremlins == "moving" and orbit.any():
-            moved = self._moving(model, state, action, base, obs, seen)
+            assert goal_button is not None
+            moved = self._moving(model, state, action, base, seen, goal_button)
             if moved is action:
                 return action  # kept: the same object, so that callers count no intervention
             if moved is not None:
@@ -243,17 +245,17 @@ class SafetyShield(CostRegions):
         return np.asarray(options[self._escape(model, state, options, regions, contact, orbit)],
                           dtype=np.asarray(action).dtype)
 
-    def _goal_within(self, state: RobotState, base: Any, obs: np.ndarray,
-                     reach: float) -> Regions:
+    @staticmethod
+    def _goal_within(state: RobotState, goal_button: Regions | None, reach: float) -> Regions:
         """Under the moving certificate, the goal button's contact regions within ``reach`` of
         the robot (a press it might make now; refused by
         :func:`~semdp.embedded.exit_planning.presses_without_exit` where the way out of the
-        pressed button has to cross an orbit disc); none otherwise."""
-        goal = self.goal_button(base, obs) if self.gremlins == "moving" else no_regions()
+        pressed button has to cross an orbit disc); none otherwise (``goal_button`` None)."""
+        goal = no_regions() if goal_button is None else goal_button
         return goal.where(_distances(state, goal.rows) - goal.rows[:, 2] < reach)
 
     def _moving(self, model: RobotModel, state: RobotState, action: np.ndarray, base: Any,
-                obs: np.ndarray, seen: Regions) -> np.ndarray | None:
+                seen: Regions, goal_button: Regions) -> np.ndarray | None:
         """``action`` if it is certified as the first step of a plan against the gremlins'
         positions, else the first action of a plan certified from here, else None
         (:mod:`semdp.embedded.moving_certificate`). The plan kept from the last step is tried
@@ -269,7 +271,7 @@ class SafetyShield(CostRegions):
             return None
         homes = seen.where(seen.orbit)
         gremlins = Gremlins(homes.rows, episode_time(base), model.h * model.substeps)
-        statics = seen.where(~seen.orbit).plus(self.goal_button(base, obs))
+        statics = seen.where(~seen.orbit).plus(goal_button)
         static = statics.rows
         kept = self._plan
         first = np.asarray(action, dtype=np.float64)
