@@ -160,6 +160,8 @@ def _shield_state(state: dict[str, Any]) -> dict[str, Any]:
     bound = state.get("lidar_bearing_bound")
     if bound in RECORDED_BOUNDS:
         state["lidar_bearing_bound"] = RECORDED_BOUNDS[bound]  # type: ignore[index]
+    if type(state.get("_plan_seen")) is tuple:  # a (statics, homes) pair: not where it was read
+        state["_plan"], state["_plan_seen"] = None, None  # the next step plans afresh
     return state
 
 

@@ -91,6 +91,21 @@ def test_a_filter_pickled_before_the_fallback_and_kernel_options_resumes_as_it_w
     assert (today.fallback, today.kernel) == ("brake", "python")  # today's pickles: as they are
 
 
+def test_a_kept_plan_pickled_without_where_it_was_read_is_planned_afresh() -> None:
+    """A filter pickled mid-episode kept its plan's frame as a (statics, homes) pair, without
+    the position and time a gremlin row's sight is judged from: the plan and its frame are
+    dropped (the next step plans afresh); today's frames come back as they are."""
+    from semdp.embedded.cost_regions import no_regions
+    from semdp.embedded.moving_certificate import KeptFrame, Plan
+
+    plan = Plan((1.0, 0.0), 5)
+    old = _legacy_copy(SafetyShield(), _plan=plan, _plan_seen=(no_regions(), no_regions()))
+    assert (old._plan, old._plan_seen) == (None, None)
+    frame = KeptFrame(no_regions(), no_regions(), (0.5, -0.2), 3.0)
+    today = _legacy_copy(SafetyShield(), _plan=plan, _plan_seen=frame)
+    assert today._plan == plan and today._plan_seen.position == (0.5, -0.2)
+
+
 @pytest.mark.parametrize(("recorded", "bound"), [(True, "bin"), (False, "none")])
 def test_a_filter_pickled_with_a_boolean_bound_resumes_as_it_was(recorded, bound) -> None:
     assert _legacy_copy(SafetyShield(), lidar_bearing_bound=recorded).lidar_bearing_bound == bound

@@ -19,7 +19,14 @@ import semdp.envs  # noqa: F401  (registers the sims ids)
 from semdp.embedded import moving_certificate
 from semdp.embedded.cost_regions import Regions, no_regions
 from semdp.embedded.exit_planning import EXIT_STEPS, exit_reach, presses_without_exit
-from semdp.embedded.moving_certificate import HOLDS, Gremlins, Plan, certified_plans, plans_for
+from semdp.embedded.moving_certificate import (
+    HOLDS,
+    Gremlins,
+    KeptFrame,
+    Plan,
+    certified_plans,
+    plans_for,
+)
 from semdp.embedded.perception import gremlin_offset, gremlin_offsets
 from semdp.embedded.plan_rollouts import rollout
 from semdp.embedded.robot_models import RobotState, robot_model
@@ -309,6 +316,11 @@ def _rows(rows: list[list[float]], spread: list[float], keepout: float | list[fl
                    np.broadcast_to(np.asarray(own, dtype=bool), (m,)).copy())
 
 
+def _statics_only(statics: Regions) -> KeptFrame:
+    """A kept frame of static rows and no gremlin homes."""
+    return KeptFrame(statics, _rows([], [], 0.4), (0.0, 0.0), 0.0)
+
+
 def test_only_rows_the_kept_rows_cannot_explain_are_added() -> None:
     """Oracle by hand: a row's object lies within its spread of its centre, two objects' centres
     are at least the sum of their keepouts apart, so today's row ``b`` holds kept row ``a``'s
@@ -352,7 +364,8 @@ def _kept_check(shield: SafetyShield, then: dict, now: dict
     model = robot_model("car")
     state = RobotState(*now["state"])
     gremlins = Gremlins(now["homes"].rows, now["time"], model.h * model.substeps)
-    shield._plan_seen = (then["statics"], then["homes"])
+    shield._plan_seen = KeptFrame(then["statics"], then["homes"], tuple(now["state"][:2]),
+                                  then["time"])
     frame = shield._kept_frame(model, state, None, now["plan"], now["statics"], now["homes"],
                                gremlins)
     return state, gremlins, frame
@@ -467,7 +480,7 @@ def test_a_region_that_widens_around_the_car_does_not_end_its_kept_plan() -> Non
     assert inside.sum() == 1
     assert np.hypot(*(today.rows[inside, :2] - button[:2]).T)[0] < 0.1  # the button's row
     assert shield._inside_static(state, today)  # no kept plan: today's rows
-    shield._plan_seen = (kept, _rows([], [], 0.4))
+    shield._plan_seen = _statics_only(kept)
     assert not shield._inside_static(state, today)
     planted = _rows([[state.x + 0.1, state.y - 0.1, 0.3]], [0.05], 0.18)
     assert len(planted.unexplained_by(kept).rows) == 1
@@ -476,7 +489,7 @@ def test_a_region_that_widens_around_the_car_does_not_end_its_kept_plan() -> Non
                          < 0.15)
     assert len(holding.rows)
     grown = holding._replace(rows=holding.rows + np.array([0.0, 0.0, 0.1]))  # the Car in it too
-    shield._plan_seen = (grown, _rows([], [], 0.4))
+    shield._plan_seen = _statics_only(grown)
     assert shield._inside_static(state, today)
 
 
@@ -491,12 +504,12 @@ def test_an_alias_row_does_not_clear_a_button_the_robot_pressed() -> None:
     state = RobotState(*fx["state"])
     kept, today = _rows(**fx["kept_statics"]), _rows(**fx["today_statics"])
     shield = SafetyShield(gremlins="moving")
-    shield._plan_seen = (kept, _rows([], [], 0.4))
+    shield._plan_seen = _statics_only(kept)
     assert shield._inside_static(state, today)
     near = np.hypot(kept.rows[:, 0] - fx["button"][0], kept.rows[:, 1] - fx["button"][1]) < 0.2
     outside = np.hypot(kept.rows[:, 0] - state.x, kept.rows[:, 1] - state.y) >= kept.rows[:, 2]
     assert (near & outside & ~kept.own).any() and not (near & outside & kept.own).any()
-    shield._plan_seen = (kept._replace(own=np.ones(len(kept.own), bool)), _rows([], [], 0.4))
+    shield._plan_seen = _statics_only(kept._replace(own=np.ones(len(kept.own), bool)))
     assert not shield._inside_static(state, today)  # every row taken for an object's own
 
 
@@ -516,3 +529,72 @@ def test_a_car_in_a_buttons_margin_keeps_planning() -> None:
     shield = SafetyShield(gremlins="moving")
     assert not shield._inside_static(state, today)
     assert SafetyShield(margin=0.0, gremlins="moving")._inside_static(state, today)
+
+
+def test_a_gremlin_row_is_in_sight_of_a_frame_within_the_lidar_range() -> None:
+    """Oracle by hand: a gremlin's body at ``home + o(t)``; a row may hold a gremlin whose
+    home lies within its spread of the row's centre. In sight when the body's distance from
+    where the frame was read, plus the spread and the law's tolerance (0.005 m), is under the
+    range (3 m) less 0.001 m."""
+    t = 1.3
+    o = gremlin_offset(t)
+    homes = _rows([[2.0 - o[0], -o[1], 0.76]] * 4 + [[-o[0], 2.5 - o[1], 0.76]],
+                  [0.9, 0.993, 0.995, np.inf, 0.49], 0.4)
+    frame = KeptFrame(_rows([], [], 0.4), _rows([], [], 0.4), (0.0, 0.0), t)
+    # 2 + 0.9 + 0.005 = 2.905, 2.998, 3.0, inf; 2.5 + 0.49 + 0.005 = 2.995 (< 2.999)
+    np.testing.assert_array_equal(frame.in_sight(homes), [True, True, False, False, True])
+    # read 0.5 s later the bodies sit elsewhere on their orbits (0.35 m from home)
+    later = frame._replace(time=t + 0.5)
+    body = homes.rows[:, :2] + gremlin_offset(t + 0.5)
+    far = np.hypot(*body.T) + homes.spread + 0.005
+    np.testing.assert_array_equal(later.in_sight(homes), far < 2.999)
+    assert (later.in_sight(homes) != frame.in_sight(homes)).any()
+
+
+def _gremlin_in_sight() -> tuple[KeptFrame, dict]:
+    """The frames of ``kept_plan_frames.json``'s ``gremlin_in_sight`` entry."""
+    fx = json.loads(KEPT_FRAMES.read_text())["gremlin_in_sight"]
+
+    def regions(node: dict) -> Regions:
+        return Regions(np.array(node["rows"]).reshape(-1, 3), np.array(node["contact"], bool),
+                       np.array(node["orbit"], bool), np.array(node["spread"]),
+                       np.array(node["keepout"]), np.array(node["own"], bool))
+
+    then, now = fx["certified"], fx["next"]
+    frame = KeptFrame(regions(then["statics"]), regions(then["homes"]),
+                      tuple(then["position"]), then["time"])
+    return frame, {**now, "statics": regions(now["statics"]), "homes": regions(now["homes"]),
+                   "plan": Plan(tuple(now["plan"][0]), now["plan"][1])}
+
+
+def test_a_gremlin_row_in_sight_of_the_kept_frame_does_not_end_the_plan() -> None:
+    """``semdp-bench safety`` (CarButton1, goal-seeking subgoals, seeds 33000, episode 16):
+    the Car inside an orbit disc follows a plan certified against a frame read 0.08 s before.
+    Today's gremlin rows hold four candidates that no kept row of an object's own explains
+    (one a far candidate with a 0.46 m bound), and with them added the plan is not certified:
+    the Car lost its plan, found none certified for 50 steps and was hit (41 cost steps).
+    Every one of them lay within the LiDAR's range when the kept frame was read, so any gremlin
+    it may hold lit a row of that frame, which the plan is clear of: the plan is kept. Read
+    3 m farther away, the frame had not seen them all: they are added and the plan is lost."""
+    frame, now = _gremlin_in_sight()
+    model = robot_model("car")
+    state = RobotState(*now["state"])
+    gremlins = Gremlins(now["homes"].rows, now["time"], model.h * model.substeps)
+    start = np.array(now["start"])
+    added = now["homes"].unexplained_by(frame.homes)
+    assert len(added.rows) and frame.in_sight(added).all()
+    statics = frame.statics.plus(now["statics"].unexplained_by(frame.statics))
+    points, ends = moving_certificate.plan_points(model, state, start, [now["plan"]])
+    every = Gremlins(frame.homes.plus(added).rows, now["time"], gremlins.dt)
+    assert moving_certificate.clearances(points, ends, state, statics.rows, every, 0.05)[0] < 0.0
+    shield = SafetyShield(gremlins="moving")
+
+    def kept(seen: KeptFrame) -> KeptFrame | None:
+        shield._plan_seen = seen
+        return shield._kept_frame(model, state, start, now["plan"], now["statics"],
+                                  now["homes"], gremlins)
+
+    assert kept(frame) is not None
+    far = frame._replace(position=(frame.position[0] + 3.0, frame.position[1]))
+    assert not far.in_sight(added).all()
+    assert kept(far) is None

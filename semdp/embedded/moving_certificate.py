@@ -29,31 +29,42 @@ bin is one; they come and go, and their bounds change, as the robot turns): the 
 checked against today's rows, else against those it was certified against plus today's rows
 that may hold an object none of those holds
 (:meth:`~semdp.embedded.cost_regions.Regions.unexplained_by`: an object not seen then; static
-objects and gremlins' homes do not move). Where none is certified (a contact, a gremlin seen
+objects and gremlins' homes do not move) and, for a gremlin row, a gremlin out of the LiDAR's
+range when the first of those frames was read (:meth:`KeptFrame.in_sight`: every gremlin in
+range lit a row of it). Where none is certified (a contact, a gremlin seen
 late) the filter takes the plan with the largest clearance inside an orbit disc, and its static
 rules outside.
 
 The bounds relied on: the robot model's one-step error and the gremlin law's tolerance within
 the filter's margin, as for the static certificate; the layout's placement keepouts (two
 objects' centres at least the sum of their kinds' keepouts apart) for telling a row's object
-from another's; gaps are checked at env steps.
+from another's; the LiDAR's law (:mod:`semdp.embedded.lidar_bounds`: an object within range is
+its bin's largest contribution) for a frame holding every gremlin in range; gaps are checked
+at env steps.
 tests/test_moving_gremlins.py plants robots that cross orbit discs and a check that ignores
-the gremlins' motion (fails: contact).
+the gremlins' motion (fails: contact), and kept frames that explain gremlin rows out of their
+sight (fails: a plan kept against a gremlin never seen).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
+from semdp.embedded.cost_regions import Regions
 from semdp.embedded.exit_planning import EXIT_STEPS
-from semdp.embedded.perception import GREMLIN_TRAVEL, gremlin_offsets
+from semdp.embedded.lidar_bounds import LIDAR_RANGE
+from semdp.embedded.perception import GREMLIN_LAW_TOLERANCE, GREMLIN_TRAVEL, gremlin_offsets
 from semdp.embedded.plan_rollouts import rollout
 from semdp.embedded.robot_models import RobotModel, RobotState
 
 #: The hold lengths (env steps) of the plans tried with each escape action.
 HOLDS: tuple[int, ...] = (0, 2, 5, 10, 20, 35, 50)
+#: How far (m) inside the LiDAR's range an object must be to be sure to light its bin: the
+#: float32 reading and the empty-bin threshold move the range's edge by less than 1e-5 m.
+SIGHT_SLACK = 1e-3
 
 
 @dataclass(frozen=True)
@@ -82,6 +93,29 @@ class Gremlins:
         """``(steps, g, 2)``: each gremlin's centre after each of the next ``steps`` steps."""
         offsets = gremlin_offsets(self.time + self.dt * np.arange(1, steps + 1))
         return self.homes[None, :, :2] + offsets[:, None, :]
+
+
+class KeptFrame(NamedTuple):
+    """What the kept plan was certified against: static rows and gremlin homes, and where
+    (the robot's root) and when (episode time, s) the LiDAR frame they began with was read."""
+
+    statics: Regions
+    homes: Regions
+    position: tuple[float, float]
+    time: float
+
+    def in_sight(self, homes: Regions) -> np.ndarray:
+        """``(m,)``: whether every gremlin that row ``i`` of ``homes`` may hold was within the
+        LiDAR's range (less :data:`SIGHT_SLACK`) when this frame was read. The gremlin was
+        then at ``home + o(time)`` (within the law's tolerance), its home within the row's
+        spread of the row's centre. Such a gremlin lit a bin of that frame (the LiDAR reads
+        object centres; under the law of :mod:`semdp.embedded.lidar_bounds` as its bin's
+        largest contribution), and every lit bin is a row of the frame: the plan was
+        certified against it."""
+        body = homes.rows[:, :2] + gremlin_offsets(np.array([self.time]))[0]
+        far = (np.hypot(body[:, 0] - self.position[0], body[:, 1] - self.position[1])
+               + homes.spread + GREMLIN_LAW_TOLERANCE)
+        return far < LIDAR_RANGE - SIGHT_SLACK
 
 
 def plans_for(model: RobotModel) -> list[Plan]:

@@ -46,6 +46,7 @@ from semdp.embedded.exit_planning import EXIT_STEPS, exit_option, presses_withou
 from semdp.embedded.lidar_bounds import BEARING_BOUNDS
 from semdp.embedded.moving_certificate import (
     Gremlins,
+    KeptFrame,
     Plan,
     certified_plans,
     choose,
@@ -136,7 +137,7 @@ class SafetyShield(CostRegions):
         self.gremlins = gremlins
         self._plan: Plan | None = None
         #: The static rows and gremlin homes the kept plan was certified against.
-        self._plan_seen: tuple[Regions, Regions] | None = None
+        self._plan_seen: KeptFrame | None = None
         self._kept_for = 0  # steps the best-effort plan has been kept (_best_effort)
         self.stats = ShieldStats()
         self._model: RobotModel | None = None
@@ -285,7 +286,8 @@ class SafetyShield(CostRegions):
                 plans = plans_for(model)
                 scores = certified_plans(model, state, start, plans, static, gremlins,
                                          self.margin, self.kernel)
-                plan, frame = choose(plans, scores), (statics, homes)
+                plan = choose(plans, scores)
+                frame = KeptFrame(statics, homes, (state.x, state.y), gremlins.time)
             if plan is not None:
                 self._plan_seen = frame
             if plan is not None and start is not None:
@@ -317,9 +319,10 @@ class SafetyShield(CostRegions):
         an alias row (no object) next to a button a Mass had just pressed must not clear the
         button's own row."""
         inside = _distances(state, static.rows) < static.rows[:, 2] - self.margin
-        if not inside.any() or self._plan_seen is None or not len(self._plan_seen[0].rows):
+        if (not inside.any() or self._plan_seen is None
+                or not len(self._plan_seen.statics.rows)):
             return bool(inside.any())
-        kept = self._plan_seen[0]
+        kept = self._plan_seen.statics
         outside = _distances(state, kept.rows) >= kept.rows[:, 2] - self.margin
         cleared = (static.where(inside).same_objects(kept) & outside[None, :]).any(axis=1)
         return not cleared.all()
@@ -347,11 +350,15 @@ class SafetyShield(CostRegions):
 
     def _kept_frame(self, model: RobotModel, state: RobotState, start: np.ndarray | None,
                     kept: Plan, statics: Regions, homes: Regions, gremlins: Gremlins
-                    ) -> tuple[Regions, Regions] | None:
+                    ) -> KeptFrame | None:
         """The static rows and gremlin homes the kept plan (after ``start``) is certified
         against, else None: today's, or else those it was certified against with today's rows
         that none of those explains (:meth:`~semdp.embedded.cost_regions.Regions.unexplained_by`:
-        an object not seen then). Each frame's rows hold every object the LiDAR sees, and
+        an object not seen then) and, of the gremlin rows, those whose gremlin may have been
+        out of the LiDAR's range when the first of those frames was read
+        (:meth:`~semdp.embedded.moving_certificate.KeptFrame.in_sight`; alias rows of far
+        candidates, bounds up to 0.46 m, lost a Car its plan in an orbit disc until a gremlin
+        came round). Each frame's rows hold every object the LiDAR sees, and
         neither a static object nor a gremlin's home moves, so a plan clear of one frame's rows
         is clear of those objects at every later step; the LiDAR's rows (every lit bin) come and
         go and change their bounds as the robot turns, and a plan certified against the last
@@ -364,13 +371,14 @@ class SafetyShield(CostRegions):
             return clearances(points, ends, state, static.rows, others, self.margin)[0] >= 0.0
 
         if certified(statics, homes):
-            return statics, homes
-        if self._plan_seen is None:
+            return KeptFrame(statics, homes, (state.x, state.y), gremlins.time)
+        old = self._plan_seen
+        if old is None:
             return None
-        old_static, old_homes = self._plan_seen
-        frame = (old_static.plus(statics.unexplained_by(old_static)),
-                 old_homes.plus(homes.unexplained_by(old_homes)))
-        return frame if certified(*frame) else None
+        new = homes.unexplained_by(old.homes)
+        frame = old._replace(statics=old.statics.plus(statics.unexplained_by(old.statics)),
+                             homes=old.homes.plus(new.where(~old.in_sight(new))))
+        return frame if certified(frame.statics, frame.homes) else None
 
     def _escape(self, model: RobotModel, state: RobotState, options: list[np.ndarray],
                 regions: np.ndarray, contact: np.ndarray, orbit: np.ndarray) -> int:
