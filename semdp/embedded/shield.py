@@ -19,13 +19,12 @@ Contacts (the box, a pillar) are outside the model: a push can leave the robot i
 from which braking is no longer certified. ``fallback`` says what happens then: ``"escape"``
 (the default) takes whichever of braking and the escape actions keeps the largest clearance
 one step ahead, among those that enter no region the robot is outside of now if there are any;
-``"brake"`` keeps braking. In the one training episode with cost of the
-long-trained Point runs (outputs/reference/archive/semdp_converged/COMMAND.md) a push left braking
-uncertified against the LiDAR-bounded regions though not against the true hazard, and the
-escape choice accelerated the robot into the hazard; replayed with ``"brake"`` the episode has
-no cost. Over the safety table both have no episode with cost, and ``"brake"`` replaces
-1.1-5.8x more commands where the filter acts on at least 1 % of them (the Point and the Car;
-outputs/reference/safety/COMMAND.md), so the default stays ``"escape"``.
+``"brake"`` keeps braking. In the one training episode with cost of the long-trained Point runs
+(outputs/reference/archive/semdp_converged/COMMAND.md) a push left braking uncertified against
+the LiDAR-bounded regions though not against the true hazard, and the escape choice accelerated
+the robot into the hazard; replayed with ``"brake"`` the episode has no cost. Over the safety
+table both have no episode with cost, and ``"brake"`` replaces 1.1-5.8x more commands where the
+filter acts on 1 % or more (outputs/reference/safety/COMMAND.md): the default stays ``"escape"``.
 
 A :attr:`SafetyShield.recorder`, when set, is given a :class:`FilterRecord` of every
 :meth:`SafetyShield.filter` call (the robot state it read, the proposed and applied actions,
@@ -354,16 +353,13 @@ class SafetyShield(CostRegions):
         """The static rows and gremlin homes the kept plan (after ``start``) is certified
         against, else None: today's, or else those it was certified against with today's rows
         that none of those explains (:meth:`~semdp.embedded.cost_regions.Regions.unexplained_by`:
-        an object not seen then) and, of the gremlin rows, those whose gremlin may have been
-        out of the LiDAR's range when the first of those frames was read
-        (:meth:`~semdp.embedded.moving_certificate.KeptFrame.in_sight`; alias rows of far
-        candidates, bounds up to 0.46 m, lost a Car its plan in an orbit disc until a gremlin
-        came round). Each frame's rows hold every object the LiDAR sees, and
-        neither a static object nor a gremlin's home moves, so a plan clear of one frame's rows
-        is clear of those objects at every later step; the LiDAR's rows (every lit bin) come and
-        go and change their bounds as the robot turns, and a plan certified against the last
-        frame's alone was lost in the middle of an orbit disc (a gremlin candidate gone) or
-        next to a button (its region 0.011 m wider the next step)."""
+        an object not seen then), of the gremlin rows only those out of the first frame's sight
+        (:meth:`~semdp.embedded.moving_certificate.KeptFrame.in_sight`). Each frame's rows
+        hold every object the LiDAR sees, and neither a static object nor a gremlin's home
+        moves, so a plan clear of one frame's rows is clear of those objects at every later
+        step; the LiDAR's rows (every lit bin) come and go and change their bounds as the robot
+        turns, and a plan certified against the last frame's alone was lost in an orbit disc
+        (a gremlin candidate gone) or next to a button (its region 0.011 m wider)."""
         points, ends = plan_points(model, state, start, [kept], self.kernel)
 
         def certified(static: Regions, rows: Regions) -> bool:
