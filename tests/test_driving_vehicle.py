@@ -138,3 +138,40 @@ def test_bicycle_step_is_deterministic_and_substeps_converge() -> None:
     np.testing.assert_allclose(a, fine, atol=1e-4)
     assert MODEL.step(state, 10.0, 6.0, 0.05, 4) == MODEL.step(state, PARAMS.max_steer, 6.0,
                                                                 0.05, 4)
+
+
+def _rates_from_the_definitions(v_x, v_y, r, delta, force):
+    """The blended body rates (module docstring of sims/driving/vehicle.py) composed from the
+    model's definitions: ``tyre_forces`` (Fiala axles, the rear derated by the friction
+    circle, the longitudinal force), ``blend_weight`` and the kinematic model."""
+    p = PARAMS
+    tyres = MODEL.tyre_forces(v_x, v_y, r, delta, force)
+    drive = tyres["fx_rear"] - p.drag_coefficient * v_x
+    fyf, fyr = tyres["fy_front"], tyres["fy_rear"]
+    dynamic = ((drive - fyf * math.sin(delta)) / p.mass + r * v_y,
+               (fyf * math.cos(delta) + fyr) / p.mass - r * v_x,
+               (p.cg_to_front * fyf * math.cos(delta) - p.cg_to_rear * fyr) / p.yaw_inertia)
+    r_kin = v_x * math.tan(delta) / p.wheelbase
+    kinematic = (drive / p.mass, (p.cg_to_rear * r_kin - v_y) / p.kinematic_time_constant,
+                 (r_kin - r) / p.kinematic_time_constant)
+    lam = MODEL.blend_weight(v_x, v_y)
+    return tuple(lam * d + (1.0 - lam) * k for d, k in zip(dynamic, kinematic, strict=True))
+
+
+def test_the_written_out_rates_are_the_models_definitions() -> None:
+    """Oracle: the RK4 stage's rates (written out in one function for speed) equal the model
+    composed from its definitions, at random states across the blend (kinematic, blended,
+    dynamic), both tyre saturations, braking and reversing. An edit to one of the two that
+    the other does not mirror fails here."""
+    rng = np.random.default_rng(3)
+    for _ in range(2000):
+        v_x = float(rng.choice([rng.uniform(-0.5, 0.2), rng.uniform(0.2, 0.8),
+                                rng.uniform(0.8, 8.0)]))
+        v_y, r = (float(x) for x in rng.normal(0.0, [0.6, 1.5]))
+        delta = float(rng.uniform(-PARAMS.max_steer, PARAMS.max_steer))
+        force = float(rng.uniform(-2.0, 2.0) * PARAMS.friction * PARAMS.rear_load)
+        written = MODEL._body_rates(v_x, v_y, r, delta, math.cos(delta), math.sin(delta),
+                                    math.tan(delta), force)
+        np.testing.assert_allclose(written, _rates_from_the_definitions(v_x, v_y, r, delta,
+                                                                        force),
+                                   rtol=1e-9, atol=1e-9)

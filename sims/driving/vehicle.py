@@ -218,7 +218,9 @@ class BicycleModel:
         tan_delta: float,
         force_command: float,
     ) -> tuple[float, float, float]:
-        """Blended (v_x', v_y', r') at one RK4 stage."""
+        """Blended (v_x', v_y', r') at one RK4 stage: :meth:`longitudinal_force`,
+        :meth:`tyre_forces` and :meth:`blend_weight` written out in one function (the hot
+        path); tests/test_driving_vehicle.py checks them equal."""
         p = self.params
         m = p.mass
         # longitudinal force: brake fade + friction limit (inlined longitudinal_force)
