@@ -217,17 +217,12 @@ class CostRegions:
                 out = out.plus(_rows_of(base, kind, found[:, :3], grow, found[:, 3] > 0.5))
         return out
 
-    def goal_button_regions(self, base: Any, obs: np.ndarray) -> np.ndarray:
-        """``(m, 3)`` rows ``[x, y, R]``: the goal button's contact region (Button tasks; no
-        rows elsewhere) from the goal LiDAR channel under :attr:`lidar_bearing_bound` (``bin``
-        for ``none``), or from the simulator with ground truth. Not a cost region: the plans
-        of the moving-gremlin certificate, which model no contacts, must not run into it
-        (:mod:`semdp.embedded.moving_certificate`)."""
-        return self.goal_button(base, obs).rows
-
     def goal_button(self, base: Any, obs: np.ndarray) -> Regions:
-        """:meth:`goal_button_regions` as :class:`Regions` (contact rows of the buttons, the
-        bins' allowances their spreads)."""
+        """The goal button's contact region (Button tasks; no rows elsewhere) from the goal
+        LiDAR channel under :attr:`lidar_bearing_bound` (``bin`` for ``none``), or from the
+        simulator with ground truth; the bins' allowances are the rows' spreads. Not a cost
+        region: the plans of the moving-gremlin certificate, which model no contacts, must not
+        run into it (:mod:`semdp.embedded.moving_certificate`)."""
         if "buttons" not in self._radii or "goal_lidar" not in base.obs_slices:
             return no_regions()
         radius = self._radii["buttons"] + self.margin

@@ -157,10 +157,6 @@ class SafetyShield(CostRegions):
         super().new_episode()
         self._plan, self._plan_seen, self._kept_for = None, None, 0
 
-    def reset_stats(self) -> None:
-        """Zero the counters."""
-        self.stats = ShieldStats()
-
     def clearance(self, state: RobotState, first: np.ndarray, regions: np.ndarray) -> float:
         """Smallest ``distance - R`` to ``regions`` over ``first`` then the braking manoeuvre,
         by the bound robot's model: the filter's certificate (>= 0: certified). ``regions``:

@@ -18,7 +18,7 @@ FILTER_BRANCHES = ("unchecked", "kept", "braked", "escaped")
 
 @dataclass
 class ShieldStats:
-    """Counts since the last :meth:`semdp.embedded.shield.SafetyShield.reset_stats`."""
+    """The filter's counts since it was made (:attr:`semdp.embedded.shield.SafetyShield.stats`)."""
 
     steps: int = 0
     checked: int = 0
