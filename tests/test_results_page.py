@@ -25,7 +25,13 @@ import yaml
 
 from semdp.reporting import results_page as rp
 from semdp.reporting.results_claims import claims, fill
-from semdp.reporting.results_sources import Sources, seeds_text, steps_text, table_cell
+from semdp.reporting.results_sources import (
+    Sources,
+    evaluated,
+    seeds_text,
+    steps_text,
+    table_cell,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "outputs" / "reference"
@@ -194,3 +200,11 @@ def test_formatting_oracles() -> None:
     assert seeds_text([0, 2]) == "2 seeds (0, 2)"
     text = "# T\n\n| env | metric | A |\n|---|---|---|\n| X 2 m/s | reward | 1.00 ± 0.50 |\n"
     assert table_cell(text, "", "X 2 m/s::reward", "A") == "1.00 ± 0.50"
+
+
+def test_a_zoo_entry_is_grouped_under_the_task_it_stepped() -> None:
+    """``env=semdp_point_push1 env.task=Button1`` records the env option ``semdp_point_push1``;
+    the entry belongs to PointButton1 (its config's gymnasium id), not PointPush1."""
+    envs = {row.name: row.env for row in evaluated(Sources(), "semdp_button1_moving")}
+    assert envs and all(env == f"{name.split('_')[1].capitalize()}Button1"
+                        for name, env in envs.items()), envs

@@ -24,7 +24,7 @@ from typing import Any
 import yaml
 
 from semdp.paths import REPO_ROOT
-from semdp.reporting.names import algorithm_name, env_name, trained_env
+from semdp.reporting.names import algorithm_name, trained_env
 from semdp.reporting.tables import format_cell
 
 #: The committed results.
@@ -181,7 +181,8 @@ def evaluated(sources: Sources, folder: str) -> list[Evaluated]:
                     or record["env_steps"])
         found.append(Evaluated(
             name=name, run_dir=run_dir, method=str(record["label"]).split(" [eval")[0],
-            env=env_name(str(record["env"])), seed=int(record["seed"]), env_steps=steps,
+            env=stepped_env(sources, run_dir, str(record["env"])), seed=int(record["seed"]),
+            env_steps=steps,
             reward=float(record["eval"]["return_mean"]), cost=float(record["eval"]["cost_mean"]),
             episodes=int(record["eval"]["episodes"]),
             seeds=tuple(int(s) for s in record["settings"]["seeds"])))
@@ -198,17 +199,23 @@ def grouped(rows: list[Evaluated]) -> dict[tuple[str, str], list[Evaluated]]:
     return {key: sorted(group, key=lambda r: r.seed) for key, group in groups.items()}
 
 
+def stepped_env(sources: Sources, run_dir: str, recorded: str) -> str:
+    """The task a run stepped, for tables: its config's gymnasium id names it
+    (``env=semdp_point_push1 env.task=Button1`` steps PointButton1), else the ``recorded`` env
+    option's name."""
+    node = {}
+    if sources.exists(f"{run_dir}/config.yaml"):
+        node = (sources.data(f"{run_dir}/config.yaml") or {}).get("env") or {}
+    return trained_env(str(node.get("id", "")), recorded)
+
+
 def kept_runs(sources: Sources, folder: str) -> list[tuple[str, dict[str, Any]]]:
     """(run directory, its ``metrics.json``) of every run kept in ``folder``; ``env`` is the
-    task the run stepped (its config's gymnasium id names it: ``env=semdp_point_push1
-    env.task=Button1`` steps PointButton1)."""
+    task the run stepped (:func:`stepped_env`)."""
     runs = []
     for path in sources.glob(f"{folder}/runs/**/metrics.json"):
         run_dir, metrics = str(Path(path).parent), dict(sources.data(path))
-        node = {}
-        if sources.exists(f"{run_dir}/config.yaml"):
-            node = (sources.data(f"{run_dir}/config.yaml") or {}).get("env") or {}
-        metrics["env"] = trained_env(str(node.get("id", "")), str(metrics.get("env")))
+        metrics["env"] = stepped_env(sources, run_dir, str(metrics.get("env")))
         runs.append((run_dir, metrics))
     return runs
 
