@@ -77,6 +77,27 @@ def test_filter_regions_cover_the_wrong_buttons_and_spare_the_goal_button() -> N
     assert not inside[3].any()  # the goal button's does not
 
 
+@pytest.mark.parametrize("perception", ["lidar", "gt"])
+@pytest.mark.parametrize(("task", "has_button"), [("Button1", True), ("Push1", False),
+                                                  ("Goal1", False)])
+def test_a_goal_button_is_read_on_button_tasks_only(perception: str, task: str,
+                                                    has_button: bool) -> None:
+    """The goal LiDAR of a Goal or Push task sees a goal area, no button: no goal-button rows
+    (and no work for them at every low-level step); a Button task's goal button is found."""
+    env = gym.make(f"sims/SafetyPoint{task}-v0")
+    shield = SafetyShield(perception=perception)
+    for seed in range(20):  # a layout whose goal is lit on the goal channel
+        obs, _ = env.reset(seed=seed)
+        base = env.unwrapped
+        if obs[base.obs_slices["goal_lidar"]].max() > 0.0:
+            break
+    else:
+        raise AssertionError("no layout with the goal in LiDAR range")
+    shield.bind(base)
+    rows = shield.goal_button(base, obs).rows
+    assert (len(rows) > 0) is has_button, rows
+
+
 def test_a_wrong_buttons_aliasing_bound_reads_the_goal_buttons_bin_from_the_whole_channel(
 ) -> None:
     # the goal button (nearer) owns the bin next to a wrong button's, where the wrong button's

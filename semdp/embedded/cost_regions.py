@@ -222,8 +222,12 @@ class CostRegions:
         LiDAR channel under :attr:`lidar_bearing_bound` (``bin`` for ``none``), or from the
         simulator with ground truth; the bins' allowances are the rows' spreads. Not a cost
         region: the plans of the moving-gremlin certificate, which model no contacts, must not
-        run into it (:mod:`semdp.embedded.moving_certificate`)."""
-        if "buttons" not in self._radii or "goal_lidar" not in base.obs_slices:
+        run into it (:mod:`semdp.embedded.moving_certificate`). A task is a Button task where
+        the robot has a buttons LiDAR channel; elsewhere the goal channel sees a goal area (Goal,
+        Push), which is no button."""
+        slices = base.obs_slices
+        if ("buttons" not in self._radii or "goal_lidar" not in slices
+                or "buttons_lidar" not in slices):
             return no_regions()
         radius = self._radii["buttons"] + self.margin
         if self.perception == "gt":
