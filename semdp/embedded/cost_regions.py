@@ -102,10 +102,20 @@ class Regions(NamedTuple):
         return self.where(~self.same_objects(seen).any(axis=1))
 
 
+def _read_only(*arrays: np.ndarray) -> Regions:
+    for array in arrays:
+        array.flags.writeable = False
+    return Regions(*arrays)
+
+
+#: The one empty set of rows (read-only: every operation on it makes new arrays).
+_NO_REGIONS = _read_only(np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool),
+                         np.zeros(0), np.zeros(0), np.zeros(0, dtype=bool))
+
+
 def no_regions() -> Regions:
     """No rows."""
-    flags = np.zeros(0, dtype=bool)
-    return Regions(np.zeros((0, 3)), flags, flags, np.zeros(0), np.zeros(0), flags)
+    return _NO_REGIONS
 
 
 def placement_keepout(base: Any, kind: str) -> float:

@@ -247,8 +247,10 @@ class SafetyShield(CostRegions):
         the robot (a press it might make now; refused by
         :func:`~semdp.embedded.exit_planning.presses_without_exit` where the way out of the
         pressed button has to cross an orbit disc); none otherwise (``goal_button`` None)."""
-        goal = no_regions() if goal_button is None else goal_button
-        return goal.where(_distances(state, goal.rows) - goal.rows[:, 2] < reach)
+        if goal_button is None or not len(goal_button.rows):
+            return no_regions()
+        rows = goal_button.rows
+        return goal_button.where(_distances(state, rows) - rows[:, 2] < reach)
 
     def _moving(self, model: RobotModel, state: RobotState, action: np.ndarray, base: Any,
                 seen: Regions, goal_button: Regions) -> np.ndarray | None:
