@@ -103,6 +103,7 @@ class Regions(NamedTuple):
 
 
 def _read_only(*arrays: np.ndarray) -> Regions:
+    """:class:`Regions` of ``arrays``, made read-only."""
     for array in arrays:
         array.flags.writeable = False
     return Regions(*arrays)
