@@ -75,7 +75,7 @@ def test_a_planted_wrong_return_in_an_eval_json_changes_the_page(page: str) -> N
 
 
 def test_a_planted_wrong_cell_in_a_table_md_changes_the_claim(page: str) -> None:
-    section = "sp_safety_gym/table.md"
+    section = "sp_safety_gym_policies/table.md"
     cell = table_cell((REFERENCE / section).read_text(), "Training episodes, last",
                          "PointGoal1::cost", "PPO-Lag")
     planted = rp.results_page(_planted(section, f"| {cell} |", "| 99.99 ± 0.01 |"))
