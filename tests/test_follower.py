@@ -22,7 +22,11 @@ from semdp.embedded.follower import (
 )
 from semdp.embedded.follower_weights import export_follower, load_follower_actor
 from semdp.embedded.goal_reaching import GoalReachingEnv
-from semdp.evaluation.follower_eval import evaluate_reaching, point_to_polyline_distance
+from semdp.evaluation.follower_eval import (
+    cruise_speed,
+    evaluate_reaching,
+    point_to_polyline_distance,
+)
 from semdp.evaluation.follower_export import actor_mean_state
 
 
@@ -123,6 +127,29 @@ def test_committed_car_follower_reaches_goals() -> None:
                               seed=123)
     assert stats.success_rate >= 0.95
     assert stats.mean_steps_to_success <= 50
+
+def test_the_point_look_ahead_is_past_its_followers_stopping_distance() -> None:
+    """conf/robot/point.yaml's look-ahead (0.4 m) lets the committed Point follower cruise near
+    its top speed (1.47 m/s) on a straight plan; at the thesis' 0.2 m it brakes for a tracking
+    point within its stopping distance and cruises at under half of it."""
+    lookahead = compose_node("robot", "point")["lookahead"]
+    follower, env_id = PolicyFollower("point.pt"), "sims/SafetyPointGoal0-v0"
+    assert lookahead == 0.4
+    assert cruise_speed(follower, env_id, lookahead, episodes=1) > 1.3
+    assert cruise_speed(follower, env_id, 0.2, episodes=1) < 0.7
+
+
+def test_cruise_speed_of_the_p_controller_is_its_saturated_command() -> None:
+    """The Mass P-controller's command saturates 0.125 m from the target, so any look-ahead
+    beyond it gives the same cruise speed (the oracle: the two look-aheads agree)."""
+    env_id = "sims/SafetyMassGoal0-v0"
+    fast = cruise_speed(ProportionalFollower(), env_id, 0.2, episodes=1)
+    assert fast > 0.5
+    assert cruise_speed(ProportionalFollower(), env_id, 0.6, episodes=1) == pytest.approx(fast)
+    assert cruise_speed(ProportionalFollower(), env_id, 0.05, episodes=1) < 0.8 * fast
+    with pytest.raises(ValueError, match="lookahead"):
+        cruise_speed(ProportionalFollower(), env_id, 0.0)
+
 
 def test_mass_p_controller_reaches_goals() -> None:
     stats = evaluate_reaching(ProportionalFollower(), "sims/SafetyMassGoal0-v0", trials=10)

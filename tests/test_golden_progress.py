@@ -13,12 +13,12 @@ compares with ``golden/GenuineIntel/`` (recorded on an Intel Xeon with the same 
 * Files recorded before the config and module restructuring (commit d56383e), with the defaults
   changed since switched back to the recorded setting (the IPOPT rescue for the Point and the
   low-level safety filter, which the recording did not have; evaluations in one process; the
-  critics' regression through autograd).
+  critics' regression through autograd; the Point's tracking look-ahead, 0.2 m then).
 * Files that pin today's defaults: PPO-Lag with the written-out derivatives and two evaluation
   processes, checked with every helper off (``loop=single``) and on (``loop=helpers``), which
   must give the same numbers; the SEMDP main job's pipelined loop (lockstep envs, a learner
   process) past ``learning_starts``, so the learner's updates are pinned too (with the filter's
-  whole-bin LiDAR bound it was recorded with).
+  whole-bin LiDAR bound and the 0.2 m look-ahead it was recorded with).
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ def _is_clock(column: str) -> bool:
           "algo.gradients=autograd"]),
         ("semdp_ci_s0.csv", ["experiment=semdp", "budget=ci", "seed=0", "loop=sequential",
                              "robot.rescue_backend=null", "env.shield=null", "eval_workers=1",
-                             "algo.hidden_sizes=[256,256]"]),
+                             "algo.hidden_sizes=[256,256]", "robot.lookahead=0.2"]),
         ("ppo_lag_point_goal1_ci_s0_written.csv",
          ["algo=ppo_lag", "env=point_goal1", "budget=ci", "seed=0", "loop=single",
           "eval_workers=2"]),
@@ -82,7 +82,7 @@ def _is_clock(column: str) -> bool:
         ("semdp_pipelined_s0.csv",
          ["experiment=semdp", "budget=ci", "seed=0", "total_steps=2400",
           "algo.learning_starts=800", "tensorboard=false", "algo.hidden_sizes=[256,256]",
-          "env.shield.lidar_bearing_bound=bin"]),
+          "env.shield.lidar_bearing_bound=bin", "robot.lookahead=0.2"]),
     ],
     ids=["ppo_lag_d56383e", "semdp_sequential_d56383e", "ppo_lag_helpers_off",
          "ppo_lag_helpers_on", "semdp_pipelined"],

@@ -44,6 +44,8 @@ def test_each_factor_changes_what_it_names_and_nothing_else() -> None:
         "gt_all": {"env.eval_wrapper.perception": "gt",
                    "env.eval_wrapper.shield.perception": "gt"},
         "clearance_0.3": {"env.eval_wrapper.planner.problem.clearance": 0.3},
+        "lookahead_0.2": {"env.eval_wrapper.d_min": 0.2},
+        "lookahead_0.4": {"env.eval_wrapper.d_min": 0.4},
         "sampled": {},  # an evaluation setting, not a config key
         "planner_no_gremlins": {"env.eval_wrapper.obstacle_kinds": no_gremlins},
         "moving_gremlins": {"env.eval_wrapper.gremlins": "moving",

@@ -22,6 +22,8 @@ factor                    what changes (``semdp-eval`` arguments)
 ``gt_all``                planner and filter both from the true obstacles
 ``sampled``               the stochastic policy's sampled actions instead of its mean
 ``clearance_0.3``         the planner's eps' 0.3 m instead of the configured (= thesis) 0.5 m
+``lookahead_0.2``         the follower's tracking point 0.2 m ahead (the thesis', App. B.2.2)
+``lookahead_0.4``         ... 0.4 m ahead (the Point's configured look-ahead, conf/robot/)
 ``planner_no_gremlins``   the planner ignores the gremlins; the filter still keeps the robot out
                           of their orbit discs (the room the planner's discs take)
 ``moving_gremlins``       the planner sees each gremlin where it is, the filter certifies plans
@@ -30,7 +32,7 @@ factor                    what changes (``semdp-eval`` arguments)
                           orbit discs take, the ceiling of any finer gremlin model)
 ========================  ==================================================================
 
-    semdp-bench price                                   # Push1's 9 zoo policies x 8 factors
+    semdp-bench price                                   # Push1's 9 zoo policies x every factor
     semdp-bench price set=button1 workers=2             # Button1's 9 zoo policies
     semdp-bench price runs=[zoo:semdp_car_push1_s1] factors=[configured,no_filter] episodes=10
 
@@ -86,6 +88,8 @@ FACTORS: dict[str, tuple[tuple[str, ...], str]] = {
                "planner and filter from true obstacles"),
     "sampled": (("actions=sampled",), "sampled instead of mean actions"),
     "clearance_0.3": (("clearance=0.3",), "planner eps' 0.3 m instead of 0.5 m"),
+    "lookahead_0.2": (("env.eval_wrapper.d_min=0.2",), "tracking point 0.2 m ahead (thesis)"),
+    "lookahead_0.4": (("env.eval_wrapper.d_min=0.4",), "tracking point 0.4 m ahead"),
     "planner_no_gremlins": ((f"+env.eval_wrapper.obstacle_kinds={_NO_GREMLINS}",),
                             "planner ignores the gremlins (the filter still avoids them)"),
     "moving_gremlins": (("+env.eval_wrapper.gremlins=moving",

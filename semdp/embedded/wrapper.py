@@ -109,7 +109,8 @@ class SafetyEmbeddedEnv(gym.Wrapper):
             names the same ones).
         k: low-level steps per high-level step (thesis: 10).
         subgoal_scale: metres per unit action in the ego frame (thesis code: 2.0).
-        d_min: tracking-point look-ahead (App. B.2.2: 0.2 m).
+        d_min: tracking-point look-ahead (App. B.2.2: 0.2 m; the configs take the robot's
+            ``lookahead``, 0.4 m for the Point: docs/semdp.md, "Followers").
         perception: ``"lidar"`` (default, reconstructed from the LiDAR bins),
             ``"lidar_refined"`` (bearings from the bins' aliasing) or ``"gt"``
             (:data:`semdp.embedded.perception.PERCEPTION_MODES`).

@@ -13,6 +13,10 @@ Two measurements on the ``sims`` Safety Gym replica:
   with the App. B.2.2 tracking point until the root is within 0.05 m of the last waypoint (or a
   step limit). The cross-track error of a step is the distance from the root to the plan's
   polyline.
+* **cruise speed**: on an obstacle-free straight line, the tracking point is kept ``lookahead``
+  ahead of the root's progress along the line; the robot's median speed once it has settled.
+  A follower trained to stop at its goal slows for a tracking point within its stopping
+  distance, so this is what the look-ahead costs in pace (App. B.2.2 uses 0.2 m).
 """
 
 from __future__ import annotations
@@ -165,6 +169,37 @@ def evaluate_tracking(
     )
 
 
+def cruise_speed(
+    follower: Follower,
+    env_id: str,
+    lookahead: float,
+    episodes: int = 3,
+    steps: int = 100,
+    settle: int = 30,
+    seed: int = 0,
+) -> float:
+    """Median root speed (m/s) over steps ``settle..steps`` of ``episodes`` straight-line runs
+    along the initial heading, the tracking point ``lookahead`` m ahead of the root's progress."""
+    if not lookahead > 0:
+        raise ValueError(f"lookahead must be > 0, got {lookahead}")
+    if not 0 <= settle < steps:
+        raise ValueError(f"need 0 <= settle < steps, got settle={settle}, steps={steps}")
+    env, base, _ = _trial_env(follower, env_id, episodes, seed)
+    speeds: list[float] = []
+    for episode in range(episodes):
+        obs, _ = env.reset(seed=seed + episode)
+        start = np.array(base.robot_position, dtype=np.float64)
+        direction = np.array([math.cos(base.robot_heading), math.sin(base.robot_heading)])
+        for step in range(steps):
+            position = np.array(base.robot_position, dtype=np.float64)
+            target = start + (float((position - start) @ direction) + lookahead) * direction
+            obs, *_ = env.step(follower.act(obs, position, base.robot_heading, target))
+            if step >= settle:
+                speeds.append(float(np.hypot(*base.robot_velocity)))
+    env.close()
+    return float(np.median(speeds))
+
+
 def main(argv: list[str] | None = None) -> None:
     """CLI: print (and optionally save) reaching and tracking figures of one robot's follower."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -173,6 +208,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--trials", type=int, default=200)
     parser.add_argument("--tracking-trials", type=int, default=50)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--lookahead", type=float, default=0.2,
+                        help="tracking-point look-ahead of the tracking measurement (m)")
     parser.add_argument("--json", default=None, help="also write the figures to this file")
     args = parser.parse_args(argv)
     import semdp.envs  # noqa: F401  (registers the sims ids)
@@ -192,14 +229,21 @@ def main(argv: list[str] | None = None) -> None:
               f"mean {stats.mean_steps_to_success:.1f} steps")
     planner = SafeTrajectoryPlanner(backend="ipopt")
     tracking = evaluate_tracking(
-        follower, f"sims/Safety{name}Goal1-v0", planner, args.tracking_trials, seed=args.seed
+        follower, f"sims/Safety{name}Goal1-v0", planner, args.tracking_trials,
+        d_min=args.lookahead, seed=args.seed,
     )
     out["tracking"] = asdict(tracking)
-    print(f"{name} tracking (30-waypoint IPOPT plans, {tracking.trials} paths): cross-track "
+    print(f"{name} tracking (30-waypoint IPOPT plans, {tracking.trials} paths, look-ahead "
+          f"{args.lookahead} m): cross-track "
           f"mean {tracking.mean_cross_track:.3f} m, first 10 steps "
           f"{tracking.mean_cross_track_first_k:.3f} m, p95 {tracking.p95_cross_track:.3f} m, "
           f"max {tracking.max_cross_track:.3f} m; end reached {tracking.end_reached_rate:.0%} "
           f"in {tracking.mean_steps:.0f} steps on average")
+    for lookahead in (0.2, 0.3, 0.4, 0.6):
+        speed = cruise_speed(follower, f"sims/Safety{name}Goal0-v0", lookahead, seed=args.seed)
+        out[f"cruise_speed_{lookahead}"] = speed
+        print(f"{name} cruise speed on a straight line, tracking point {lookahead} m ahead: "
+              f"{speed:.2f} m/s")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2))
 
