@@ -491,11 +491,12 @@ def test_bench_episodes_that_had_cost_have_none(robot: str, task: str, policy: s
     grace period ended (before the exit rule: 4 cost steps, the Point's nose swinging back into
     the button as it turned; the exit rule with the gap measured from a disc of the robot's
     extent rather than its outline: 2 and 3 cost steps, the Point's nose and the Car's
-    wheels)."""
+    wheels). Each with the tracking look-ahead it was recorded with (the thesis' 0.2 m; the
+    Point's default is 0.4 m since)."""
     from semdp.benchmarks.safety import build_semdp_env, make_policy
     from semdp.evaluation.safety_eval import evaluate_safety
 
-    env = build_semdp_env(robot, task, config)
+    env = build_semdp_env(robot, task, config, ("robot.lookahead=0.2",))
     stats = evaluate_safety(env, make_policy(policy, env, seed), 1, seed=seed)
     assert stats["episodes"] == 1 and stats["escape_rate"] > 0  # driven to the edge
     assert stats["cost_steps_total"] == 0

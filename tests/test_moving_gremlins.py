@@ -38,6 +38,10 @@ YAW = {"point": 0.0, "car": math.pi / 2, "mass": 0.0}
 FORWARD = {"point": [1.0, 0.0], "car": [1.0, 1.0], "mass": [1.0, 0.0]}
 CORNERS = [(1.6, 1.6), (-1.6, 1.6), (1.6, -1.6), (-1.6, -1.6)]
 
+#: The settings the bench episodes replayed below were recorded with: the moving-gremlin
+#: certificate and the thesis' 0.2 m tracking look-ahead (the Point's default is 0.4 m since).
+RECORDED = ("env.gremlins=moving", "robot.lookahead=0.2")
+
 
 @pytest.mark.parametrize("kernel", ["python", "compiled", "native"])
 @pytest.mark.parametrize("robot", ROBOTS)
@@ -222,7 +226,7 @@ def test_a_point_leaves_the_button_it_pressed_by_the_exit_not_by_plans() -> None
     from semdp.benchmarks.safety import build_semdp_env, make_policy
     from semdp.evaluation.safety_eval import evaluate_safety
 
-    env = build_semdp_env("point", "Button1", "eval", ("env.gremlins=moving",))
+    env = build_semdp_env("point", "Button1", "eval", RECORDED)
     stats = evaluate_safety(env, make_policy("goal", env, 20317), 1, seed=20317)
     assert stats["escape_rate"] > 0 and stats["return_mean"] > 1.0  # pressed, then escaped
     assert stats["cost_steps_total"] == 0
@@ -239,7 +243,7 @@ def test_a_point_inside_an_orbit_disc_commits_to_one_best_effort_plan() -> None:
     from semdp.benchmarks.safety import build_semdp_env, make_policy
     from semdp.evaluation.safety_eval import evaluate_safety
 
-    env = build_semdp_env("point", "Button1", "eval", ("env.gremlins=moving",))
+    env = build_semdp_env("point", "Button1", "eval", RECORDED)
     stats = evaluate_safety(env, make_policy("goal", env, 9627), 1, seed=9627)
     assert stats["escape_rate"] > 0  # the best-effort plans ran
     assert stats["cost_steps_total"] == 0
